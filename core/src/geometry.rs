@@ -1,0 +1,259 @@
+//! Rays, bounding boxes and the scene geometry: every bounded primitive under one BVH, infinite planes beside
+//! it, with closest-hit and any-hit queries.
+
+use crate::bvh::Bvh;
+use crate::shapes::{LocalHit, Plane, Shape};
+use glam::{Vec2, Vec3, Vec3A};
+use serde::{Deserialize, Serialize};
+
+/// A ray `o + t·d`. `d` is a unit vector wherever a distance is compared with a length.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray {
+    /// Origin.
+    pub o: Vec3A,
+    /// Direction.
+    pub d: Vec3A,
+}
+
+impl Ray {
+    /// A ray.
+    #[inline]
+    pub fn new(o: Vec3A, d: Vec3A) -> Self {
+        Self { o, d }
+    }
+
+    /// The point at distance `t`.
+    #[inline]
+    pub fn at(&self, t: f32) -> Vec3A {
+        self.o + t * self.d
+    }
+}
+
+/// An axis-aligned bounding box. The empty box has `min = +∞`, `max = −∞`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Aabb {
+    /// Lower corner.
+    pub min: Vec3,
+    /// Upper corner.
+    pub max: Vec3,
+}
+
+impl Default for Aabb {
+    fn default() -> Self {
+        Self::EMPTY
+    }
+}
+
+impl Aabb {
+    /// The empty box.
+    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
+
+    /// The box around some points.
+    pub fn from_points(points: &[Vec3]) -> Self {
+        points.iter().fold(Self::EMPTY, |b, &p| b.grow(p))
+    }
+
+    /// The box grown to hold `p`.
+    #[inline]
+    pub fn grow(self, p: Vec3) -> Self {
+        Self { min: self.min.min(p), max: self.max.max(p) }
+    }
+
+    /// The union of two boxes.
+    #[inline]
+    pub fn union(self, o: Aabb) -> Self {
+        Self { min: self.min.min(o.min), max: self.max.max(o.max) }
+    }
+
+    /// The centre.
+    #[inline]
+    pub fn center(&self) -> Vec3 {
+        0.5 * (self.min + self.max)
+    }
+
+    /// Half the surface area (what the SAH needs); 0 for an empty box.
+    #[inline]
+    pub fn half_area(&self) -> f32 {
+        let d = (self.max - self.min).max(Vec3::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
+    /// Whether the box holds nothing.
+    pub fn is_empty(&self) -> bool {
+        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
+    }
+}
+
+/// Marks "no light" / "no index".
+pub const NONE: u32 = u32::MAX;
+
+/// A bounded primitive: a shape with its material, the area light it carries (or [`NONE`]) and the scene object
+/// it belongs to (objects group the triangles of a mesh).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Primitive {
+    /// The shape.
+    pub shape: Shape,
+    /// Material index.
+    pub material: u32,
+    /// Area light index, or [`NONE`].
+    pub light: u32,
+    /// Scene object index.
+    pub object: u32,
+}
+
+/// An infinite plane primitive.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PlanePrimitive {
+    /// The plane.
+    pub plane: Plane,
+    /// Material index.
+    pub material: u32,
+    /// Scene object index.
+    pub object: u32,
+}
+
+/// Per-vertex shading data of one mesh: normals and UVs indexed per face corner.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct MeshShading {
+    /// World-space unit normals.
+    pub normals: Vec<[f32; 3]>,
+    /// Texture coordinates (may be empty).
+    pub uvs: Vec<[f32; 2]>,
+    /// For each face, the normal index of each corner.
+    pub normal_indices: Vec<[u32; 3]>,
+    /// For each face, the UV index of each corner (empty when the mesh has no UVs).
+    pub uv_indices: Vec<[u32; 3]>,
+}
+
+/// Which primitive a hit is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PrimRef {
+    /// Index into [`Geometry::prims`].
+    Bounded(u32),
+    /// Index into [`Geometry::planes`].
+    Plane(u32),
+}
+
+/// A ray's closest hit with everything shading needs.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    /// Distance along the ray.
+    pub t: f32,
+    /// Point on the surface.
+    pub p: Vec3A,
+    /// Geometric unit normal as the shape defines it.
+    pub n: Vec3A,
+    /// Shading unit normal (interpolated on meshes), on the same side as `n`.
+    pub ns: Vec3A,
+    /// Texture coordinates.
+    pub uv: Vec2,
+    /// Material index.
+    pub material: u32,
+    /// Area light index, or [`NONE`].
+    pub light: u32,
+    /// Scene object index.
+    pub object: u32,
+    /// The primitive.
+    pub prim: PrimRef,
+}
+
+/// All the surfaces of a scene.
+#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+pub struct Geometry {
+    /// Bounded primitives, in BVH leaf order.
+    pub prims: Vec<Primitive>,
+    /// The BVH over `prims`.
+    pub bvh: Bvh,
+    /// Infinite planes.
+    pub planes: Vec<PlanePrimitive>,
+    /// Shading data of meshes.
+    pub meshes: Vec<MeshShading>,
+}
+
+impl Geometry {
+    /// Builds the BVH and puts the primitives in its leaf order.
+    pub fn new(prims: Vec<Primitive>, planes: Vec<PlanePrimitive>, meshes: Vec<MeshShading>) -> Self {
+        let bounds: Vec<Aabb> = prims.iter().map(|p| p.shape.bounds()).collect();
+        let (bvh, order) = Bvh::build(&bounds);
+        let prims = order.iter().map(|&i| prims[i as usize]).collect();
+        Self { prims, bvh, planes, meshes }
+    }
+
+    /// The bounding box of all bounded primitives.
+    pub fn bounds(&self) -> Aabb {
+        self.prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.shape.bounds()))
+    }
+
+    /// The closest hit in `(0, tmax)`.
+    pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<Hit> {
+        let mut best: Option<(PrimRef, f32)> = None;
+        let mut tmax = tmax;
+        for (i, pl) in self.planes.iter().enumerate() {
+            if let Some(t) = pl.plane.intersect(ray, tmax) {
+                tmax = t;
+                best = Some((PrimRef::Plane(i as u32), t));
+            }
+        }
+        if let Some((i, t)) =
+            self.bvh.closest_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect(ray, tmax))
+        {
+            best = Some((PrimRef::Bounded(i), t));
+        }
+        let (prim, t) = best?;
+        Some(self.hit_data(ray, prim, t))
+    }
+
+    /// Whether anything blocks `ray` in `(0, tmax)`.
+    pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
+        self.planes.iter().any(|pl| pl.plane.intersect(ray, tmax).is_some())
+            || self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect(ray, tmax).is_some())
+    }
+
+    fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Hit {
+        match prim {
+            PrimRef::Plane(i) => {
+                let pl = &self.planes[i as usize];
+                let LocalHit { p, n, uv } = pl.plane.local_hit(ray.at(t));
+                Hit { t, p, n, ns: n, uv, material: pl.material, light: NONE, object: pl.object, prim }
+            }
+            PrimRef::Bounded(i) => {
+                let pr = &self.prims[i as usize];
+                let LocalHit { p, n, uv } = pr.shape.local_hit(ray, t);
+                let (n, ns, uv) = match pr.shape {
+                    crate::shapes::Shape::Triangle(tri) if tri.mesh != crate::shapes::NO_MESH => {
+                        self.mesh_shading(tri.mesh, tri.face, uv, n)
+                    }
+                    _ => (n, n, uv),
+                };
+                Hit { t, p, n, ns, uv, material: pr.material, light: pr.light, object: pr.object, prim }
+            }
+        }
+    }
+
+    /// Geometric normal, interpolated shading normal and UV at barycentrics `b` of a mesh face. The mesh's
+    /// normals say which side is outside: the geometric normal is flipped to their side, so a mesh whose
+    /// winding disagrees with its normals still has a consistent outside (which glass needs).
+    fn mesh_shading(&self, mesh: u32, face: u32, b: Vec2, n: Vec3A) -> (Vec3A, Vec3A, Vec2) {
+        let Some(m) = self.meshes.get(mesh as usize) else { return (n, n, b) };
+        let w = [1.0 - b.x - b.y, b.x, b.y];
+        let (n, ns) = match m.normal_indices.get(face as usize) {
+            Some(ix) => {
+                let s = (0..3).fold(Vec3A::ZERO, |acc, k| acc + w[k] * Vec3A::from_array(m.normals[ix[k] as usize]));
+                let s = s.normalize_or_zero();
+                if s == Vec3A::ZERO {
+                    (n, n)
+                } else if s.dot(n) < 0.0 {
+                    (-n, s)
+                } else {
+                    (n, s)
+                }
+            }
+            None => (n, n),
+        };
+        let uv = match m.uv_indices.get(face as usize) {
+            Some(ix) => (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * Vec2::from_array(m.uvs[ix[k] as usize])),
+            None => b,
+        };
+        (n, ns, uv)
+    }
+}

@@ -1,0 +1,208 @@
+//! Small geometric helpers: orthonormal frames, robust ray offsets, sampling warps, reflection, refraction and
+//! the Fresnel equations.
+
+use glam::{Vec2, Vec3A};
+use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+
+/// An orthonormal frame whose `n` axis is local +z.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Frame {
+    /// Local +x.
+    pub s: Vec3A,
+    /// Local +y.
+    pub t: Vec3A,
+    /// Local +z (the normal).
+    pub n: Vec3A,
+}
+
+impl Frame {
+    /// A frame around the unit vector `n` (Duff et al., "Building an Orthonormal Basis, Revisited", JCGT 2017).
+    pub fn from_normal(n: Vec3A) -> Self {
+        let sign = 1.0f32.copysign(n.z);
+        let a = -1.0 / (sign + n.z);
+        let b = n.x * n.y * a;
+        let s = Vec3A::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+        let t = Vec3A::new(b, sign + n.y * n.y * a, -n.y);
+        Self { s, t, n }
+    }
+
+    /// World to local coordinates.
+    #[inline]
+    pub fn to_local(&self, v: Vec3A) -> Vec3A {
+        Vec3A::new(v.dot(self.s), v.dot(self.t), v.dot(self.n))
+    }
+
+    /// Local to world coordinates.
+    #[inline]
+    pub fn to_world(&self, v: Vec3A) -> Vec3A {
+        self.s * v.x + self.t * v.y + self.n * v.z
+    }
+}
+
+/// Moves a ray origin off a surface so that the new ray does not hit the surface it leaves.
+///
+/// Wächter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection" (Ray Tracing Gems, ch. 6):
+/// the offset is a fixed number of ulps of each coordinate, so it scales with the distance from the origin and
+/// still works 10,000 units away. `n` must point to the side the new ray leaves towards.
+#[inline]
+pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
+    const ORIGIN: f32 = 1.0 / 32.0;
+    const FLOAT_SCALE: f32 = 1.0 / 65536.0;
+    const INT_SCALE: f32 = 256.0;
+    let of_i = [
+        (INT_SCALE * n.x) as i32,
+        (INT_SCALE * n.y) as i32,
+        (INT_SCALE * n.z) as i32,
+    ];
+    let pa = p.to_array();
+    let na = n.to_array();
+    let mut out = [0.0f32; 3];
+    for i in 0..3 {
+        let bits = pa[i].to_bits() as i32;
+        let moved = f32::from_bits((bits + if pa[i] < 0.0 { -of_i[i] } else { of_i[i] }) as u32);
+        out[i] = if pa[i].abs() < ORIGIN {
+            pa[i] + FLOAT_SCALE * na[i]
+        } else {
+            moved
+        };
+    }
+    Vec3A::from_array(out)
+}
+
+/// Cosine-weighted direction on the local +z hemisphere (Malley's method); pdf = cos θ / π.
+#[inline]
+pub fn cosine_hemisphere(u: Vec2) -> Vec3A {
+    let d = concentric_disk(u);
+    let z = (1.0 - d.x * d.x - d.y * d.y).max(0.0).sqrt();
+    Vec3A::new(d.x, d.y, z)
+}
+
+/// Uniform direction on the unit sphere; pdf = 1 / (4π).
+#[inline]
+pub fn uniform_sphere(u: Vec2) -> Vec3A {
+    let z = 1.0 - 2.0 * u.x;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u.y;
+    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Shirley–Chiu concentric map of the unit square onto the unit disc (area preserving).
+#[inline]
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let o = 2.0 * u - Vec2::ONE;
+    if o.x == 0.0 && o.y == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, theta) = if o.x.abs() > o.y.abs() {
+        (o.x, FRAC_PI_4 * (o.y / o.x))
+    } else {
+        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
+    };
+    r * Vec2::new(theta.cos(), theta.sin())
+}
+
+/// Uniform point on a triangle as barycentrics (b1, b2) (Heitz's low-distortion map is not needed here).
+#[inline]
+pub fn uniform_triangle(u: Vec2) -> (f32, f32) {
+    let su = u.x.sqrt();
+    (1.0 - su, u.y * su)
+}
+
+/// Mirror reflection of `wo` about `n` (both pointing away from the surface).
+#[inline]
+pub fn reflect(wo: Vec3A, n: Vec3A) -> Vec3A {
+    2.0 * wo.dot(n) * n - wo
+}
+
+/// Refraction of `wo` (pointing away from the surface, on the side of `n`) through a boundary with relative
+/// index `eta` = η_transmitted / η_incident. Returns the transmitted direction (pointing away from the surface
+/// on the other side), or `None` on total internal reflection.
+#[inline]
+pub fn refract(wo: Vec3A, n: Vec3A, eta: f32) -> Option<Vec3A> {
+    let cos_i = wo.dot(n);
+    let sin2_i = (1.0 - cos_i * cos_i).max(0.0);
+    let sin2_t = sin2_i / (eta * eta);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    Some(-wo / eta + (cos_i / eta - cos_t) * n)
+}
+
+/// Fresnel reflectance of a dielectric boundary for unpolarised light: the mean of the exact s- and
+/// p-polarised reflectances. `cos_i` is the cosine of the incident angle on the side of the surface the light
+/// comes from (taken as its absolute value), and `eta` = η_transmitted / η_incident. Returns 1 under total
+/// internal reflection.
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let cos_i = cos_i.abs().min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let r_s = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    let r_p = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    0.5 * (r_s * r_s + r_p * r_p)
+}
+
+/// Balance... the power heuristic with β = 2 (Veach, 1997) for two strategies with `nf` and `ng` samples.
+#[inline]
+pub fn power_heuristic(pdf_f: f32, pdf_g: f32) -> f32 {
+    let f = pdf_f * pdf_f;
+    let g = pdf_g * pdf_g;
+    if f + g == 0.0 { 0.0 } else { f / (f + g) }
+}
+
+/// Luminance of a linear sRGB/Rec.709 colour.
+#[inline]
+pub fn luminance(c: crate::Rgb) -> f32 {
+    0.2126 * c.x + 0.7152 * c.y + 0.0722 * c.z
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_is_orthonormal() {
+        for n in [Vec3A::Z, -Vec3A::Z, Vec3A::X, Vec3A::new(0.3, -0.5, 0.81).normalize()] {
+            let f = Frame::from_normal(n);
+            assert!(f.s.dot(f.t).abs() < 1e-6 && f.s.dot(f.n).abs() < 1e-6 && f.t.dot(f.n).abs() < 1e-6);
+            assert!((f.s.length() - 1.0).abs() < 1e-6 && (f.t.length() - 1.0).abs() < 1e-6);
+            let v = Vec3A::new(0.2, 0.4, -0.7);
+            assert!((f.to_world(f.to_local(v)) - v).length() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn fresnel_normal_incidence_and_total_internal_reflection() {
+        assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
+        // Leaving glass: critical angle asin(1/1.5) ≈ 41.8°.
+        let critical = (1.0f32 / 1.5).asin();
+        assert_eq!(fresnel_dielectric((critical + 0.01).cos(), 1.0 / 1.5), 1.0);
+        assert!(fresnel_dielectric((critical - 0.01).cos(), 1.0 / 1.5) < 1.0);
+        assert!(refract(Vec3A::new((critical + 0.01).sin(), 0.0, (critical + 0.01).cos()), Vec3A::Z, 1.0 / 1.5).is_none());
+    }
+
+    #[test]
+    fn refraction_obeys_snell() {
+        let theta_i = 0.6f32;
+        let wo = Vec3A::new(theta_i.sin(), 0.0, theta_i.cos());
+        let wt = refract(wo, Vec3A::Z, 1.5).unwrap();
+        assert!((wt.length() - 1.0).abs() < 1e-5);
+        assert!(wt.z < 0.0);
+        let sin_t = (wt.x * wt.x + wt.y * wt.y).sqrt();
+        assert!((theta_i.sin() - 1.5 * sin_t).abs() < 1e-5);
+    }
+
+    #[test]
+    fn offset_leaves_a_plane_far_from_the_origin() {
+        let p = Vec3A::new(10_000.0, 10_000.0, 3.0);
+        let q = offset_ray_origin(p, Vec3A::Z);
+        assert!(q.z > p.z);
+        let q = offset_ray_origin(Vec3A::new(1.0, 2.0, 10_000.0), Vec3A::Z);
+        assert!(q.z > 10_000.0);
+        let q = offset_ray_origin(Vec3A::new(1.0, 2.0, -10_000.0), Vec3A::Z);
+        assert!(q.z > -10_000.0);
+    }
+}
