@@ -206,7 +206,9 @@ impl Geometry {
     /// Whether anything blocks `ray` in `(0, tmax)`.
     pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
         self.planes.iter().any(|pl| pl.plane.intersect(ray, tmax).is_some())
-            || self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect(ray, tmax).is_some())
+            || self
+                .bvh
+                .any_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect(ray, tmax).is_some())
     }
 
     fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Hit {

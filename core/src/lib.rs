@@ -16,9 +16,22 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod bsdf;
+pub mod bvh;
+pub mod camera;
+pub mod codec;
 pub mod geometry;
+pub mod image_io;
+pub mod integrator;
+pub mod light;
+pub mod material;
 pub mod math;
+pub mod mesh;
+pub mod photon_map;
+pub mod prepare;
+pub mod render;
 pub mod rng;
+pub mod scene;
 pub mod shapes;
 
 /// Linear RGB radiance, power or reflectance.

@@ -49,22 +49,14 @@ pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
     const ORIGIN: f32 = 1.0 / 32.0;
     const FLOAT_SCALE: f32 = 1.0 / 65536.0;
     const INT_SCALE: f32 = 256.0;
-    let of_i = [
-        (INT_SCALE * n.x) as i32,
-        (INT_SCALE * n.y) as i32,
-        (INT_SCALE * n.z) as i32,
-    ];
+    let of_i = [(INT_SCALE * n.x) as i32, (INT_SCALE * n.y) as i32, (INT_SCALE * n.z) as i32];
     let pa = p.to_array();
     let na = n.to_array();
     let mut out = [0.0f32; 3];
     for i in 0..3 {
         let bits = pa[i].to_bits() as i32;
         let moved = f32::from_bits((bits + if pa[i] < 0.0 { -of_i[i] } else { of_i[i] }) as u32);
-        out[i] = if pa[i].abs() < ORIGIN {
-            pa[i] + FLOAT_SCALE * na[i]
-        } else {
-            moved
-        };
+        out[i] = if pa[i].abs() < ORIGIN { pa[i] + FLOAT_SCALE * na[i] } else { moved };
     }
     Vec3A::from_array(out)
 }
@@ -93,11 +85,8 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     if o.x == 0.0 && o.y == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, theta) = if o.x.abs() > o.y.abs() {
-        (o.x, FRAC_PI_4 * (o.y / o.x))
-    } else {
-        (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y))
-    };
+    let (r, theta) =
+        if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
     r * Vec2::new(theta.cos(), theta.sin())
 }
 
@@ -181,7 +170,9 @@ mod tests {
         let critical = (1.0f32 / 1.5).asin();
         assert_eq!(fresnel_dielectric((critical + 0.01).cos(), 1.0 / 1.5), 1.0);
         assert!(fresnel_dielectric((critical - 0.01).cos(), 1.0 / 1.5) < 1.0);
-        assert!(refract(Vec3A::new((critical + 0.01).sin(), 0.0, (critical + 0.01).cos()), Vec3A::Z, 1.0 / 1.5).is_none());
+        assert!(
+            refract(Vec3A::new((critical + 0.01).sin(), 0.0, (critical + 0.01).cos()), Vec3A::Z, 1.0 / 1.5).is_none()
+        );
     }
 
     #[test]

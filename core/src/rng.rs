@@ -79,9 +79,24 @@ mod tests {
 
     #[test]
     fn streams_are_reproducible_and_distinct() {
-        let a: Vec<f32> = (0..8).map({ let mut s = Sampler::for_pixel(7, 3, 4, 5); move |_| s.next_f32() }).collect();
-        let b: Vec<f32> = (0..8).map({ let mut s = Sampler::for_pixel(7, 3, 4, 5); move |_| s.next_f32() }).collect();
-        let c: Vec<f32> = (0..8).map({ let mut s = Sampler::for_pixel(7, 4, 3, 5); move |_| s.next_f32() }).collect();
+        let a: Vec<f32> = (0..8)
+            .map({
+                let mut s = Sampler::for_pixel(7, 3, 4, 5);
+                move |_| s.next_f32()
+            })
+            .collect();
+        let b: Vec<f32> = (0..8)
+            .map({
+                let mut s = Sampler::for_pixel(7, 3, 4, 5);
+                move |_| s.next_f32()
+            })
+            .collect();
+        let c: Vec<f32> = (0..8)
+            .map({
+                let mut s = Sampler::for_pixel(7, 4, 3, 5);
+                move |_| s.next_f32()
+            })
+            .collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
         assert!(a.iter().all(|&v| (0.0..1.0).contains(&v)));

@@ -335,10 +335,7 @@ impl Shape {
                 let n = crate::math::uniform_sphere(u);
                 (Vec3A::from(s.center) + n * s.radius, n)
             }
-            Shape::Rect(r) => (
-                Vec3A::from(r.corner) + u.x * Vec3A::from(r.u) + u.y * Vec3A::from(r.v),
-                r.normal(),
-            ),
+            Shape::Rect(r) => (Vec3A::from(r.corner) + u.x * Vec3A::from(r.u) + u.y * Vec3A::from(r.v), r.normal()),
             Shape::Triangle(t) => {
                 let (b1, b2) = crate::math::uniform_triangle(u);
                 let p = (1.0 - b1 - b2) * Vec3A::from(t.p[0]) + b1 * Vec3A::from(t.p[1]) + b2 * Vec3A::from(t.p[2]);

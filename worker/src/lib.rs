@@ -1,1 +1,1 @@
-//! x
+//! photon-worker: renders strips of a prepared scene.

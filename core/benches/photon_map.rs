@@ -1,0 +1,2 @@
+//! Photon-map benchmarks (being written).
+fn main() {}

@@ -1,0 +1,422 @@
+//! Scattering at a surface point: a [`Bxdf`] (the lobes, with textures already evaluated) in a shading frame.
+//!
+//! A [`crate::material::Material`] evaluates its textures at a hit and returns a [`Bsdf`] by value; integrators
+//! only talk to the `Bsdf`, always with world-space unit directions `wo`, `wi` that point away from the surface.
+//! The lobes themselves work in the local shading frame, where the shading normal is +z and `cos θ = w.z`.
+//!
+//! ## Conventions
+//! - [`Bsdf::f`] and [`Bsdf::pdf`] cover the non-delta lobes only (Lambert, Phong); mirror and glass are zero
+//!   there. [`Bsdf::sample`] draws from every lobe.
+//! - An integrator updates its throughput with `beta *= s.f * |wi·ns| / s.pdf` for every sample `s`. For a delta
+//!   lobe we follow pbrt: `f = (reflectance or transmittance) / |cos θi|` and `pdf` is the discrete probability
+//!   of choosing that lobe, so the same formula gives `beta *= reflectance / probability`.
+//! - Shading normals: a reflective lobe scatters only when `wo` and `wi` lie on the same side of both the
+//!   geometric normal `ng` and the shading normal (anything else would leak light through the surface or
+//!   reflect it into the surface); a transmitted direction must cross the geometric surface. Sampled directions
+//!   that break these rules are returned as `None` (no light goes there).
+//! - Glass: `wo` on the side the geometric normal points to means the path is outside, so light is entering
+//!   and the relative index is `eta`; on the other side it is `1/eta`. In [`TransportMode::Radiance`] a
+//!   transmitted sample is scaled by `1/η'²` (η' = η_transmitted / η_incident as seen from `wo`), because
+//!   radiance, unlike flux, is compressed into a narrower cone on entering a denser medium (Veach 1997, §5.2;
+//!   pbrt-v4 §9.5.2). Photons carry flux and use [`TransportMode::Importance`], without that factor.
+//! - Lambert and Phong are reciprocal, `f(wo, wi) = f(wi, wo)`; the transport mode does not change them.
+
+use crate::Rgb;
+use crate::math::{Frame, cosine_hemisphere, fresnel_dielectric, luminance, refract};
+use glam::{Vec2, Vec3A};
+use std::f32::consts::{FRAC_1_PI, PI};
+
+/// The largest `f32` below 1, for remapping a used-up uniform sample back into `[0, 1)`.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
+
+/// What a path carries, which decides whether refraction scales it by `1/η'²`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TransportMode {
+    /// Camera paths carry radiance: transmission scales by `1/η'²`.
+    Radiance,
+    /// Light paths (photons) carry flux, or importance: no `1/η'²` factor.
+    Importance,
+}
+
+/// The scattering lobes at one point, with every texture evaluated. Colours are reflectances in `[0, 1]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Bxdf {
+    /// Ideal diffuse reflection, `f = r/π`.
+    Lambert {
+        /// Reflectance (the albedo).
+        r: Rgb,
+    },
+    /// Modified Phong (Lafortune & Willems 1994): `f = kd/π + ks·(n+2)/(2π)·cos^n α`, with α the angle between
+    /// `wi` and the mirror direction of `wo`. Energy conserving when `kd + ks ≤ 1` per channel.
+    Phong {
+        /// Diffuse reflectance.
+        kd: Rgb,
+        /// Glossy reflectance (at normal incidence).
+        ks: Rgb,
+        /// Phong exponent `n ≥ 0`.
+        exponent: f32,
+    },
+    /// A perfect mirror.
+    Mirror {
+        /// Reflectance.
+        r: Rgb,
+    },
+    /// A smooth dielectric boundary (glass): exact unpolarised Fresnel reflection and refraction.
+    Dielectric {
+        /// Index of refraction of the inside (the side opposite the geometric normal) over the outside.
+        eta: f32,
+        /// Multiplies both the reflected and the transmitted light.
+        tint: Rgb,
+    },
+    /// The origin's mixture `diffuse·Lambert(color) + specular·mirror + transmission·glass(eta)`; the weights
+    /// sum to at most 1, the rest is absorbed.
+    Mix {
+        /// Reflectance of the diffuse component (only the diffuse component is coloured).
+        color: Rgb,
+        /// Weight of the diffuse component.
+        diffuse: f32,
+        /// Weight of the perfect (white) mirror.
+        specular: f32,
+        /// Weight of the (untinted) smooth dielectric.
+        transmission: f32,
+        /// Relative index of refraction of the dielectric component.
+        eta: f32,
+    },
+}
+
+/// One direction drawn by [`Bsdf::sample`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BsdfSample {
+    /// The sampled world-space direction (away from the surface).
+    pub wi: Vec3A,
+    /// BSDF value for `wi` (for a delta lobe, `reflectance / |cos θi|` times the lobe's weight).
+    pub f: Rgb,
+    /// Solid-angle density of `wi`, or for a delta lobe the discrete probability of having chosen it.
+    pub pdf: f32,
+    /// Whether `wi` came from a delta lobe (mirror or glass).
+    pub delta: bool,
+}
+
+/// A [`Bxdf`] placed at a surface point: the shading frame (normal on local +z) and the geometric normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bsdf {
+    /// The shading frame; `frame.n` is the shading normal, on the same side as `ng`.
+    pub frame: Frame,
+    /// The geometric unit normal, as the shape defines it (not flipped towards the viewer).
+    pub ng: Vec3A,
+    /// The lobes.
+    pub bxdf: Bxdf,
+}
+
+impl Bsdf {
+    /// A BSDF with shading normal `ns` and geometric normal `ng` (both unit). A shading normal on the wrong
+    /// side of `ng` is flipped.
+    pub fn new(ns: Vec3A, ng: Vec3A, bxdf: Bxdf) -> Self {
+        let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
+        Self { frame: Frame::from_normal(ns), ng, bxdf }
+    }
+
+    /// The BSDF of the non-delta lobes for the pair (`wo`, `wi`), without the cosine factor. Zero for mirrors
+    /// and glass, and whenever `wo` and `wi` are not on the same side of both normals.
+    pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Rgb {
+        // The non-delta lobes are reflective and reciprocal: the transport mode does not change them.
+        let _ = mode;
+        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 {
+            return Rgb::ZERO;
+        }
+        let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        self.f_local(wo, wi)
+    }
+
+    /// The solid-angle density with which [`Bsdf::sample`] draws `wi` from its non-delta lobes, lobe selection
+    /// probabilities included. Zero when the BSDF has no non-delta lobe.
+    pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        if !same_hemisphere(wo, wi) {
+            return 0.0;
+        }
+        match self.bxdf {
+            Bxdf::Lambert { .. } => wi.z.abs() * FRAC_1_PI,
+            Bxdf::Phong { kd, ks, exponent } => {
+                let p_glossy = phong_glossy_probability(kd, ks);
+                (1.0 - p_glossy) * wi.z.abs() * FRAC_1_PI + p_glossy * phong_lobe_pdf(wo, wi, exponent)
+            }
+            Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => 0.0,
+            Bxdf::Mix { diffuse, specular, transmission, .. } => {
+                let sum = diffuse + specular + transmission;
+                if sum > 0.0 { diffuse / sum * wi.z.abs() * FRAC_1_PI } else { 0.0 }
+            }
+        }
+    }
+
+    /// Draws `wi` for a given `wo`: `u` chooses the lobe (and between reflection and refraction for glass), `u2`
+    /// the direction in a non-delta lobe. `None` when the sampled direction carries no light (absorbed, or it
+    /// would cross the surface the wrong way, see the module docs).
+    ///
+    /// For a non-delta sample, `f` and `pdf` equal [`Bsdf::f`] and [`Bsdf::pdf`] at (`wo`, `wi`). The Mix
+    /// material chooses its component with probability `weight / (sum of weights)`, so it never absorbs here:
+    /// its absorption shows in the sample weight `f·|cos|/pdf` (and in [`Bsdf::albedo`], for Russian roulette).
+    pub fn sample(&self, wo: Vec3A, u: f32, u2: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        let wo_l = self.frame.to_local(wo);
+        match self.bxdf {
+            Bxdf::Lambert { .. } => self.sample_non_delta(wo, flip_to(cosine_hemisphere(u2), wo_l)),
+            Bxdf::Phong { kd, ks, exponent } => {
+                let wi_l = if u < phong_glossy_probability(kd, ks) {
+                    let wi_l = sample_phong_lobe(wo_l, exponent, u2);
+                    // The lobe around the mirror direction may dip below the horizon: nothing goes there.
+                    if !same_hemisphere(wo_l, wi_l) {
+                        return None;
+                    }
+                    wi_l
+                } else {
+                    flip_to(cosine_hemisphere(u2), wo_l)
+                };
+                self.sample_non_delta(wo, wi_l)
+            }
+            Bxdf::Mirror { r } => self.sample_mirror(wo, wo_l, r, 1.0),
+            Bxdf::Dielectric { eta, tint } => self.sample_dielectric(wo, wo_l, eta, tint, u, mode),
+            Bxdf::Mix { diffuse, specular, transmission, eta, .. } => {
+                let sum = diffuse + specular + transmission;
+                if sum <= 0.0 {
+                    return None;
+                }
+                let x = u * sum;
+                if x < diffuse || (specular <= 0.0 && transmission <= 0.0) {
+                    self.sample_non_delta(wo, flip_to(cosine_hemisphere(u2), wo_l))
+                } else if x < diffuse + specular || transmission <= 0.0 {
+                    self.sample_mirror(wo, wo_l, Rgb::splat(specular), specular / sum)
+                } else {
+                    let u = ((x - diffuse - specular) / transmission).clamp(0.0, ONE_MINUS_EPSILON);
+                    let mut s = self.sample_dielectric(wo, wo_l, eta, Rgb::ONE, u, mode)?;
+                    s.f *= transmission;
+                    s.pdf *= transmission / sum;
+                    Some(s)
+                }
+            }
+        }
+    }
+
+    /// The fraction of the flux arriving from `wo` that the surface scatters (reflected plus transmitted;
+    /// directional-hemispherical reflectance), per channel and at most 1. It is what Russian roulette keeps.
+    ///
+    /// Exact for Lambert (`r`), mirror (`r`), glass (`tint`: Fresnel splits the flux, it does not absorb any)
+    /// and Mix (`diffuse·color + specular + transmission`), up to light lost to shading-normal clipping. For
+    /// Phong it is the upper bound `kd + ks` (the glossy lobe reflects exactly `ks` only at normal incidence and
+    /// loses what its lobe puts below the horizon elsewhere). This is the flux (importance-mode) value: the
+    /// `1/η'²` of radiance transport moves no energy.
+    pub fn albedo(&self, wo: Vec3A) -> Rgb {
+        let _ = wo;
+        match self.bxdf {
+            Bxdf::Lambert { r } | Bxdf::Mirror { r } => r,
+            Bxdf::Phong { kd, ks, .. } => (kd + ks).min(Rgb::ONE),
+            Bxdf::Dielectric { tint, .. } => tint,
+            Bxdf::Mix { color, diffuse, specular, transmission, .. } => {
+                (diffuse * color + Rgb::splat(specular + transmission)).min(Rgb::ONE)
+            }
+        }
+    }
+
+    /// Whether every lobe is a delta lobe (mirror, glass, or a Mix without diffuse weight).
+    pub fn is_delta(&self) -> bool {
+        !self.has_non_delta()
+    }
+
+    /// Whether some lobe is not a delta lobe (Lambert, Phong, the diffuse part of Mix): photons are stored here
+    /// and direct light is worth sampling.
+    pub fn has_non_delta(&self) -> bool {
+        self.bxdf.has_non_delta()
+    }
+
+    /// The non-delta part in the local frame (geometric side already checked).
+    fn f_local(&self, wo: Vec3A, wi: Vec3A) -> Rgb {
+        if !same_hemisphere(wo, wi) {
+            return Rgb::ZERO;
+        }
+        match self.bxdf {
+            Bxdf::Lambert { r } => r * FRAC_1_PI,
+            Bxdf::Phong { kd, ks, exponent } => {
+                kd * FRAC_1_PI + ks * ((exponent + 2.0) * (0.5 * FRAC_1_PI) * phong_cos_pow(wo, wi, exponent))
+            }
+            Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => Rgb::ZERO,
+            Bxdf::Mix { color, diffuse, .. } => color * (diffuse * FRAC_1_PI),
+        }
+    }
+
+    /// A sample of the non-delta lobes at the local direction `wi_l`: `f` and `pdf` from `f` and `pdf`, so that
+    /// a lobe mixture gets the density of the mixture.
+    fn sample_non_delta(&self, wo: Vec3A, wi_l: Vec3A) -> Option<BsdfSample> {
+        let wi = self.frame.to_world(wi_l);
+        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 {
+            return None;
+        }
+        let wo_l = self.frame.to_local(wo);
+        let pdf = self.pdf(wo, wi);
+        if pdf <= 0.0 {
+            return None;
+        }
+        Some(BsdfSample { wi, f: self.f_local(wo_l, wi_l), pdf, delta: false })
+    }
+
+    /// Mirror reflection about the shading normal with reflectance `r`, chosen with probability `prob`.
+    fn sample_mirror(&self, wo: Vec3A, wo_l: Vec3A, r: Rgb, prob: f32) -> Option<BsdfSample> {
+        let wi_l = Vec3A::new(-wo_l.x, -wo_l.y, wo_l.z);
+        let wi = self.frame.to_world(wi_l);
+        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 || wi_l.z == 0.0 {
+            return None;
+        }
+        Some(BsdfSample { wi, f: r / wi_l.z.abs(), pdf: prob, delta: true })
+    }
+
+    /// Fresnel reflection (probability F) or refraction (1 − F) with index `eta` (inside over outside).
+    fn sample_dielectric(
+        &self,
+        wo: Vec3A,
+        wo_l: Vec3A,
+        eta: f32,
+        tint: Rgb,
+        u: f32,
+        mode: TransportMode,
+    ) -> Option<BsdfSample> {
+        let side = wo.dot(self.ng);
+        if side == 0.0 {
+            return None;
+        }
+        let entering = side > 0.0;
+        // Relative index as seen from wo, and the shading normal turned to wo's side.
+        let (etap, n_l) = if entering { (eta, Vec3A::Z) } else { (1.0 / eta, -Vec3A::Z) };
+        let cos_o = wo_l.dot(n_l);
+        if cos_o <= 0.0 {
+            // The shading normal disagrees with the geometric side by more than 90°: no consistent answer.
+            return None;
+        }
+        let fr = fresnel_dielectric(cos_o, etap);
+        if u < fr {
+            let wi_l = Vec3A::new(-wo_l.x, -wo_l.y, wo_l.z);
+            let wi = self.frame.to_world(wi_l);
+            if wi.dot(self.ng) * side <= 0.0 {
+                return None;
+            }
+            return Some(BsdfSample { wi, f: tint * (fr / wi_l.z.abs()), pdf: fr, delta: true });
+        }
+        let wi_l = refract(wo_l, n_l, etap)?;
+        let wi = self.frame.to_world(wi_l);
+        if wi.dot(self.ng) * side >= 0.0 || wi_l.z == 0.0 {
+            return None;
+        }
+        let tr = 1.0 - fr;
+        let scale = match mode {
+            TransportMode::Radiance => 1.0 / (etap * etap),
+            TransportMode::Importance => 1.0,
+        };
+        Some(BsdfSample { wi, f: tint * (tr * scale / wi_l.z.abs()), pdf: tr, delta: true })
+    }
+}
+
+impl Bxdf {
+    /// Whether some lobe is not a delta lobe.
+    pub fn has_non_delta(&self) -> bool {
+        match *self {
+            Bxdf::Lambert { .. } | Bxdf::Phong { .. } => true,
+            Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => false,
+            Bxdf::Mix { diffuse, .. } => diffuse > 0.0,
+        }
+    }
+
+    /// Whether some lobe is a delta lobe (mirror or glass).
+    pub fn has_delta(&self) -> bool {
+        match *self {
+            Bxdf::Lambert { .. } | Bxdf::Phong { .. } => false,
+            Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => true,
+            Bxdf::Mix { specular, transmission, .. } => specular > 0.0 || transmission > 0.0,
+        }
+    }
+}
+
+/// Whether two local directions are strictly on the same side of the shading surface.
+#[inline]
+fn same_hemisphere(a: Vec3A, b: Vec3A) -> bool {
+    a.z * b.z > 0.0
+}
+
+/// `w` (on local +z) moved to the hemisphere of `wo`.
+#[inline]
+fn flip_to(w: Vec3A, wo: Vec3A) -> Vec3A {
+    if wo.z < 0.0 { Vec3A::new(w.x, w.y, -w.z) } else { w }
+}
+
+/// `cos^n α` for the angle α between `wi` and the mirror direction of `wo` (local frame), and 0 where cos α ≤ 0
+/// (also for n = 0).
+///
+/// With d = wi − reflect(wo), cos α = 1 − |d|²/2 for unit vectors, so cos^n α = exp(n·ln(1 − |d|²/2)). Unlike
+/// `powf` of a dot product this keeps its precision at the peak for large n, and it is insensitive to first
+/// order to the f32 rounding of |wo| and |wi| (a dot product scales cos α by |wo||wi|, which would bias the
+/// lobe's integral by n·(|wo||wi| − 1)). It is exactly symmetric in `wo` and `wi`.
+#[inline]
+fn phong_cos_pow(wo: Vec3A, wi: Vec3A, n: f32) -> f32 {
+    let d2 = Vec3A::new(wi.x + wo.x, wi.y + wo.y, wi.z - wo.z).length_squared();
+    if d2 >= 2.0 { 0.0 } else { (n * (-0.5 * d2).ln_1p()).exp() }
+}
+
+/// Probability of sampling the glossy Phong lobe: its share of the luminance of `kd + ks`.
+#[inline]
+fn phong_glossy_probability(kd: Rgb, ks: Rgb) -> f32 {
+    let (d, s) = (luminance(kd), luminance(ks));
+    if s <= 0.0 { 0.0 } else { s / (d + s) }
+}
+
+/// Density of the glossy lobe sampling: `(n+1)/(2π)·cos^n α` over the sphere of directions.
+#[inline]
+fn phong_lobe_pdf(wo: Vec3A, wi: Vec3A, n: f32) -> f32 {
+    (n + 1.0) * (0.5 * FRAC_1_PI) * phong_cos_pow(wo, wi, n)
+}
+
+/// A direction around the mirror direction of `wo` with density `(n+1)/(2π)·cos^n α` (cos α = u^(1/(n+1))).
+#[inline]
+fn sample_phong_lobe(wo: Vec3A, n: f32, u2: Vec2) -> Vec3A {
+    let r = Vec3A::new(-wo.x, -wo.y, wo.z);
+    let cos_a = u2.x.powf(1.0 / (n + 1.0));
+    let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+    let phi = 2.0 * PI * u2.y;
+    Frame::from_normal(r).to_world(Vec3A::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dir(theta: f32, phi: f32) -> Vec3A {
+        Vec3A::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    }
+
+    #[test]
+    fn lambert_sample_matches_f_and_pdf() {
+        let b = Bsdf::new(Vec3A::Z, Vec3A::Z, Bxdf::Lambert { r: Rgb::splat(0.5) });
+        let wo = dir(0.4, 1.0);
+        let s = b.sample(wo, 0.3, Vec2::new(0.2, 0.7), TransportMode::Radiance).unwrap();
+        assert!(!s.delta);
+        assert!((s.pdf - s.wi.z / PI).abs() < 1e-6);
+        assert_eq!(s.f, b.f(wo, s.wi, TransportMode::Radiance));
+        assert!((b.albedo(wo) - Rgb::splat(0.5)).length() < 1e-6);
+    }
+
+    #[test]
+    fn two_sided_lambert_reflects_on_the_back() {
+        let b = Bsdf::new(Vec3A::Z, Vec3A::Z, Bxdf::Lambert { r: Rgb::ONE });
+        let wo = -dir(0.3, 0.0);
+        let s = b.sample(wo, 0.5, Vec2::new(0.5, 0.5), TransportMode::Radiance).unwrap();
+        assert!(s.wi.z < 0.0);
+        assert_eq!(b.f(wo, dir(0.5, 1.0), TransportMode::Radiance), Rgb::ZERO);
+    }
+
+    #[test]
+    fn mirror_reflects_about_the_shading_normal() {
+        let b = Bsdf::new(Vec3A::Z, Vec3A::Z, Bxdf::Mirror { r: Rgb::splat(0.9) });
+        let wo = dir(0.6, 0.3);
+        let s = b.sample(wo, 0.5, Vec2::ZERO, TransportMode::Radiance).unwrap();
+        assert!(s.delta && s.pdf == 1.0);
+        assert!((s.wi - Vec3A::new(-wo.x, -wo.y, wo.z)).length() < 1e-6);
+        assert!((s.f * s.wi.z / s.pdf - Rgb::splat(0.9)).length() < 1e-5);
+        assert_eq!(b.pdf(wo, s.wi), 0.0);
+        assert!(b.is_delta());
+    }
+}

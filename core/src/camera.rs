@@ -1,0 +1,83 @@
+//! A perspective camera with an optional thin lens.
+//!
+//! ```toml
+//! [camera]
+//! eye = [0.0, 1.0, 3.4]
+//! look_at = [0.0, 1.0, 0.0]
+//! up = [0.0, 1.0, 0.0]
+//! fov = 40.0             # vertical, degrees
+//! width = 512
+//! height = 512
+//! aperture = 0.0         # lens radius; 0 is a pinhole
+//! ```
+
+use crate::geometry::Ray;
+use crate::scene::CameraSpec;
+use glam::{Vec2, Vec3A};
+use serde::{Deserialize, Serialize};
+
+/// The camera, ready to generate rays.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Camera {
+    eye: Vec3A,
+    /// Unit vectors: right, up, forward.
+    right: Vec3A,
+    up: Vec3A,
+    forward: Vec3A,
+    /// Half extents of the image plane at distance 1.
+    half_w: f32,
+    half_h: f32,
+    lens_radius: f32,
+    focus: f32,
+    /// Image size in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+impl Camera {
+    /// A camera from its scene description (already validated).
+    pub fn new(spec: &CameraSpec) -> Self {
+        let eye = Vec3A::from(spec.eye);
+        let forward = (Vec3A::from(spec.look_at) - eye).normalize();
+        let right = forward.cross(Vec3A::from(spec.up)).normalize();
+        let up = right.cross(forward);
+        let half_h = (spec.fov.to_radians() * 0.5).tan();
+        let half_w = half_h * spec.width as f32 / spec.height as f32;
+        let focus = spec.focus_distance.unwrap_or_else(|| (spec.look_at - spec.eye).length());
+        Self {
+            eye,
+            right,
+            up,
+            forward,
+            half_w,
+            half_h,
+            lens_radius: spec.aperture,
+            focus,
+            width: spec.width,
+            height: spec.height,
+        }
+    }
+
+    /// The ray through film position `film` (pixels, from the top-left corner; `(x + 0.5, y + 0.5)` is the centre
+    /// of pixel (x, y)) and lens sample `lens`.
+    #[inline]
+    pub fn ray(&self, film: Vec2, lens: Vec2) -> Ray {
+        let sx = (2.0 * film.x / self.width as f32 - 1.0) * self.half_w;
+        let sy = (1.0 - 2.0 * film.y / self.height as f32) * self.half_h;
+        let d = (self.forward + sx * self.right + sy * self.up).normalize();
+        if self.lens_radius <= 0.0 {
+            return Ray::new(self.eye, d);
+        }
+        // Thin lens: every ray through the lens meets the pinhole ray on the plane of focus.
+        let focus_point = self.eye + d * (self.focus / d.dot(self.forward));
+        let l = crate::math::concentric_disk(lens) * self.lens_radius;
+        let o = self.eye + l.x * self.right + l.y * self.up;
+        Ray::new(o, (focus_point - o).normalize())
+    }
+
+    /// The eye position.
+    pub fn eye(&self) -> Vec3A {
+        self.eye
+    }
+}

@@ -1,0 +1,153 @@
+//! From a parsed [`Scene`] to the [`Prepared`] value that renders: meshes loaded, primitives gathered under a
+//! BVH, materials resolved to indices, lights built.
+
+use crate::Rgb;
+use crate::camera::Camera;
+use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
+use crate::light::{Light, LightSet};
+use crate::material::Material;
+use crate::scene::{Emission, LightSpec, Object, RenderSettings, Scene, SceneError};
+use crate::shapes::{Plane, Shape, Sphere, Triangle};
+use glam::Vec3A;
+use serde::{Deserialize, Serialize};
+
+/// Everything a worker needs to render any pixel of a scene.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Prepared {
+    /// The camera.
+    pub camera: Camera,
+    /// Surfaces and their BVH.
+    pub geometry: Geometry,
+    /// Materials, indexed by primitives.
+    pub materials: Vec<Material>,
+    /// Lights.
+    pub lights: LightSet,
+    /// Render settings.
+    pub settings: RenderSettings,
+}
+
+impl Prepared {
+    /// Loads meshes, builds the BVH and the lights of a validated scene. `scene_path` names the scene in errors.
+    pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
+        let names: Vec<&String> = scene.materials.keys().collect();
+        let materials: Vec<Material> = scene.materials.values().cloned().collect();
+        let material_index = |name: &str, field: String| -> Result<u32, SceneError> {
+            names.iter().position(|n| n.as_str() == name).map(|i| i as u32).ok_or_else(|| SceneError::Invalid {
+                path: scene_path.into(),
+                field,
+                message: format!("no material named `{name}`"),
+            })
+        };
+        let mut prims: Vec<Primitive> = Vec::new();
+        let mut planes = Vec::new();
+        let mut meshes = Vec::new();
+        // Emission of each light-carrying primitive, by light index, before the BVH reorders primitives.
+        let mut emitters: Vec<Emission> = Vec::new();
+        for (i, o) in scene.objects.iter().enumerate() {
+            let object = i as u32;
+            let material = material_index(o.material(), format!("objects[{i}].material"))?;
+            let mut push = |shape: Shape, emission: &Option<Emission>| {
+                let light = match emission {
+                    Some(e) if e.radiance.max_element() > 0.0 && shape.area() > 0.0 => {
+                        emitters.push(*e);
+                        (emitters.len() - 1) as u32
+                    }
+                    _ => NONE,
+                };
+                prims.push(Primitive { shape, material, light, object });
+            };
+            match o {
+                Object::Sphere { center, radius, emission, .. } => {
+                    push(Shape::Sphere(Sphere { center: *center, radius: *radius }), emission)
+                }
+                Object::Plane { point, normal, .. } => planes.push(PlanePrimitive {
+                    plane: Plane { point: *point, normal: normal.normalize() },
+                    material,
+                    object,
+                }),
+                Object::Rect { emission, .. } => {
+                    let rect = o.rect().map_err(|(field, message)| SceneError::Invalid {
+                        path: scene_path.into(),
+                        field: format!("objects[{i}].{field}"),
+                        message,
+                    })?;
+                    push(Shape::Rect(rect), emission)
+                }
+                Object::Triangle { vertices, emission, .. } => {
+                    push(Shape::Triangle(Triangle::new(vertices[0], vertices[1], vertices[2])), emission)
+                }
+                Object::Mesh { file, transform, emission, .. } => {
+                    let path = scene.base_dir.join(file);
+                    let mesh = crate::mesh::load_obj(&path, &transform.matrix()).map_err(|source| {
+                        SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
+                    })?;
+                    let mesh_index = meshes.len() as u32;
+                    for (face, t) in mesh.triangles.iter().enumerate() {
+                        let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };
+                        // Degenerate faces can never be hit; keep them out of the BVH and the lights.
+                        if tri.area() > 0.0 {
+                            push(Shape::Triangle(tri), emission);
+                        }
+                    }
+                    meshes.push(mesh.shading);
+                }
+            }
+        }
+        let geometry = Geometry::new(prims, planes, meshes);
+        let mut lights: Vec<Light> = Vec::new();
+        let mut area_lights: Vec<(u32, Light)> = Vec::new();
+        for (pi, p) in geometry.prims.iter().enumerate() {
+            if p.light != NONE {
+                let e = emitters[p.light as usize];
+                area_lights.push((
+                    p.light,
+                    Light::Area {
+                        prim: pi as u32,
+                        le: Rgb::from(e.radiance),
+                        two_sided: e.two_sided,
+                        area: p.shape.area(),
+                    },
+                ));
+            }
+        }
+        // Keep lights in scene order (by their original index), whatever order the BVH put primitives in.
+        area_lights.sort_by_key(|(k, _)| *k);
+        lights.extend(area_lights.into_iter().map(|(_, l)| l));
+        for l in &scene.lights {
+            match l {
+                LightSpec::Point { position, intensity, power } => {
+                    let intensity = match (intensity, power) {
+                        (Some(i), _) => Rgb::from(*i),
+                        (None, Some(p)) => Rgb::from(*p) / (4.0 * std::f32::consts::PI),
+                        (None, None) => Rgb::ZERO,
+                    };
+                    lights.push(Light::Point { p: Vec3A::from(*position), intensity });
+                }
+            }
+        }
+        let mut geometry = geometry;
+        // Primitives point at their light by the final light index.
+        let mut light_of_prim = vec![NONE; geometry.prims.len()];
+        for (li, l) in lights.iter().enumerate() {
+            if let Light::Area { prim, .. } = l {
+                light_of_prim[*prim as usize] = li as u32;
+            }
+        }
+        for (p, l) in geometry.prims.iter_mut().zip(light_of_prim) {
+            p.light = l;
+        }
+        Ok(Self {
+            camera: Camera::new(&scene.camera),
+            geometry,
+            materials,
+            lights: LightSet::new(lights),
+            settings: scene.render.clone(),
+        })
+    }
+
+    /// Loads and prepares a scene file.
+    pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
+        let scene = Scene::load(path)?;
+        Self::new(&scene, path)
+    }
+}
