@@ -2,14 +2,17 @@
 //! sends light to the other side of the geometric surface, a transmitted direction always crosses it, and no
 //! sample carries more than the flux that arrived (the sample weights stay within `albedo()`).
 //!
-//! Shading normals tilted by up to 60° around both sides of the surface, `wo` uniform over the sphere, 20 000
-//! samples per case; the weight bound holds per sample (up to f32 rounding), so no statistics are involved.
+//! Shading normals tilted by 25° to 51° from the geometric normal, `wo` uniform over the sphere, 20 000
+//! samples per case. The weight `f·|cos θi|/pdf` of a sample is at most `albedo()` for Lambert, mirror and glass
+//! and at most 1 for Mix (it picks a component by its share of the weights, so a sample carries their sum);
+//! Phong's mixture weight is bounded by its albedo only on average (`bsdf_albedo.rs`). These bounds hold per
+//! sample, up to f32 rounding: no statistics are involved.
 
 mod common;
 
 use common::{every_kind, sampler, transmits};
 use glam::Vec3A;
-use photon_core::bsdf::{Bsdf, TransportMode};
+use photon_core::bsdf::{Bsdf, Bxdf, TransportMode};
 use photon_core::math::uniform_sphere;
 
 #[test]
@@ -35,20 +38,15 @@ fn tilted_shading_normals_leak_no_light() {
                     assert!(s.delta && transmits(&bxdf), "{at}: light through an opaque surface");
                 }
                 let weight = s.f * s.wi.dot(b.frame.n).abs() / s.pdf;
-                // A sample's weight is the flux it carries over the probability of this kind of event; for
-                // these BSDFs it never exceeds what the surface scatters in total.
                 let bound = match bxdf {
-                    photon_core::bsdf::Bxdf::Phong { .. } => {
-                        // The mixture weight f·cos/pdf of Phong is bounded by kd + ks only in expectation;
-                        // per sample it is bounded by (kd + ks)·max((n+2)/(n+1), 1)·cos θi/cos ratio; use the
-                        // statistical claim in bsdf_albedo.rs instead and bound only by positivity here.
-                        Vec3A::splat(f32::INFINITY)
-                    }
-                    _ => albedo * (1.0 + 1e-5),
+                    Bxdf::Phong { .. } => Vec3A::INFINITY,
+                    // Mix picks a component by its share of the weights: a sample carries their sum (≤ 1).
+                    Bxdf::Mix { .. } => Vec3A::splat(1.0 + 1e-5),
+                    Bxdf::Lambert { .. } | Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => albedo * (1.0 + 1e-5),
                 };
-                assert!(weight.cmple(bound).all() && weight.min_element() >= 0.0, "{at}: weight {weight}");
+                assert!(weight.cmple(bound).all() && weight.min_element() >= 0.0 && weight.is_finite(), "{at}: {weight}");
             }
-            assert!(some > 10_000, "{name}: only {some} samples");
+            assert!(some > 2_000, "{name}: only {some} samples");
             assert_eq!(crossed > 0, transmits(&bxdf), "{name}: {crossed} samples crossed the surface");
         }
     }
