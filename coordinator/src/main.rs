@@ -34,7 +34,7 @@ struct RenderArgs {
     /// Samples per pixel (overrides the scene's `render.spp`).
     #[arg(long)]
     spp: Option<u32>,
-    /// Integrator: `path` or `direct` (overrides the scene's `render.integrator`).
+    /// Method: `path`, `direct`, `photon-map`, `final-gather` or `progressive` (overrides `render.integrator`).
     #[arg(long)]
     integrator: Option<Integrator>,
     /// Seed (overrides the scene's `render.seed`).
@@ -43,6 +43,13 @@ struct RenderArgs {
     /// Image width and height in pixels, e.g. `256x256` (overrides the scene's camera).
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
+    /// Photon paths per map, or per progressive pass (overrides `render.photons.global`, `.caustic` and
+    /// `.pass_photons`).
+    #[arg(long)]
+    photons: Option<u32>,
+    /// Progressive photon-mapping passes (overrides `render.photons.passes`).
+    #[arg(long)]
+    passes: Option<u32>,
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
@@ -95,8 +102,7 @@ fn render(args: RenderArgs) -> Result<()> {
         scene.camera.width = w;
         scene.camera.height = h;
     }
-    let mut prep = Prepared::new(&scene, &args.scene)?;
-    let s = &mut prep.settings;
+    let s = &mut scene.render;
     if let Some(spp) = args.spp {
         if spp == 0 {
             bail!("--spp must be at least 1");
@@ -112,6 +118,21 @@ fn render(args: RenderArgs) -> Result<()> {
     if let Some(e) = args.exposure {
         s.exposure = e;
     }
+    if let Some(n) = args.photons {
+        if n == 0 {
+            bail!("--photons must be at least 1");
+        }
+        s.photons.global = n;
+        s.photons.caustic = n;
+        s.photons.pass_photons = n;
+    }
+    if let Some(p) = args.passes {
+        if p == 0 {
+            bail!("--passes must be at least 1");
+        }
+        s.photons.passes = p;
+    }
+    let prep = Prepared::new(&scene, &args.scene)?;
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(primitives = prep.geometry.prims.len(), lights = prep.lights.lights.len(), prepare_s, "prepared");
     let (width, height) = (prep.camera.width, prep.camera.height);
@@ -128,7 +149,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let image = Image { width, height, pixels: strip.pixels };
     image.write(&args.output, settings.exposure)?;
     println!(
-        "{}: {width}x{height}, {} spp, {:?}, {:.2} s render (+{:.2} s prepare), {:.2} Mrays/s",
+        "{}: {width}x{height}, {} spp, {}, {:.2} s render (+{:.2} s prepare), {:.2} Mrays/s",
         args.output.display(),
         settings.spp,
         settings.integrator,

@@ -3,6 +3,7 @@
 //! The photons lie on the five walls of a unit Cornell box, so, as in real maps, many of them share a
 //! coordinate (every photon on a wall has the same x, y or z). Run with
 //! `cargo bench -p photon-core --bench photon_map`; it also prints the map's bytes per photon.
+#![allow(clippy::unwrap_used, reason = "a benchmark whose setup fails should stop at once, like a test")]
 
 use std::hint::black_box;
 use std::time::Duration;

@@ -27,8 +27,8 @@ pub const MAX_LEAF: usize = 8;
 /// centroids spaced geometrically) are split at the centroid median, which halves the count at each level.
 const SAH_DEPTH: u32 = 32;
 
-/// Bound on the depth of any leaf: [`SAH_DEPTH`] SAH levels, then at most 29 median levels take fewer than
-/// 2³² primitives down to [`MAX_LEAF`] (2³ ).
+/// Bound on the depth of any leaf, and the size of the traversal stack: [`SAH_DEPTH`] SAH levels, then at most
+/// 29 median levels take fewer than 2³² primitives down to [`MAX_LEAF`] = 2³.
 pub const MAX_DEPTH: usize = 64;
 
 /// Cost of one node visit relative to one primitive test, for the SAH.
@@ -114,6 +114,9 @@ impl RayBox {
 impl Bvh {
     /// Deterministic binned-SAH build over primitive bounds. Returns the BVH and `order`: the caller reorders its
     /// primitives as `new[i] = old[order[i]]`, and the leaves refer to contiguous ranges of that new array.
+    ///
+    /// # Panics
+    /// With 2³² − 1 or more primitives, which `u32` indices cannot address.
     pub fn build(bounds: &[Aabb]) -> (Bvh, Vec<u32>) {
         if bounds.is_empty() {
             return (Bvh::default(), Vec::new());
@@ -270,7 +273,7 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
     } else {
         sah_split(refs, &bounds, &cbounds)
     };
-    let mid = match split {
+    let (mid, axis) = match split {
         Split::Leaf => {
             nodes[index].offset = first;
             nodes[index].count = n as u16;
@@ -278,7 +281,7 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
         }
         Split::Bin { axis, bin } => {
             let (lo, scale) = bin_params(&cbounds, axis);
-            partition(refs, |r| bin_of(r.c[axis], lo, scale) <= bin)
+            (partition(refs, |r| bin_of(r.c[axis], lo, scale) <= bin), axis)
         }
         Split::Median => {
             let ext = cbounds.max - cbounds.min;
@@ -291,12 +294,8 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
             };
             let mid = n / 2;
             refs.select_nth_unstable_by(mid, |a, b| a.c[axis].total_cmp(&b.c[axis]).then(a.index.cmp(&b.index)));
-            mid
+            (mid, axis)
         }
-    };
-    let axis = match split {
-        Split::Bin { axis, .. } => axis,
-        _ => 0,
     };
     let (left, right) = refs.split_at_mut(mid);
     build_node(left, first, depth + 1, nodes);
@@ -345,12 +344,13 @@ fn sah_split(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb) -> Split {
         for k in (1..BINS).rev() {
             rb = rb.union(bins[k].0);
             rn += bins[k].1;
-            right_cost[k] = if rn == 0 { f32::NAN } else { rb.half_area() * rn as f32 };
+            right_cost[k] = rb.half_area() * rn as f32;
         }
         let (mut lb, mut ln) = (Aabb::EMPTY, 0u32);
         for k in 0..BINS - 1 {
             lb = lb.union(bins[k].0);
             ln += bins[k].1;
+            // Both sides must be non-empty (so the right side's cost was set).
             if ln == 0 || ln as usize == n {
                 continue;
             }

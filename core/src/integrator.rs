@@ -10,6 +10,7 @@ use crate::Rgb;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::geometry::{Hit, NONE, Ray};
 use crate::math::{offset_ray_origin, power_heuristic};
+use crate::photon_map::{Estimator, PhotonMap};
 use crate::prepare::Prepared;
 use crate::rng::Sampler;
 use crate::scene::{Integrator, RenderSettings};
@@ -19,10 +20,16 @@ use glam::Vec3A;
 const RR_START: u32 = 3;
 
 /// Radiance arriving along `ray`, by the integrator of `settings`. Counts every traced ray in `rays`.
+/// Progressive photon mapping is not a per-ray method: [`crate::render`] runs its passes and calls
+/// [`visible_point`] instead.
 pub fn li(prep: &Prepared, settings: &RenderSettings, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
     match settings.integrator {
         Integrator::Path => trace(prep, settings.max_depth, ray, s, rays, false),
-        Integrator::Direct => trace(prep, settings.max_depth, ray, s, rays, true),
+        Integrator::Direct | Integrator::Progressive => trace(prep, settings.max_depth, ray, s, rays, true),
+        Integrator::PhotonMap | Integrator::FinalGather => match &prep.photons {
+            Some(maps) => photon_li(prep, maps, settings, ray, s, rays),
+            None => trace(prep, settings.max_depth, ray, s, rays, true),
+        },
     }
 }
 
@@ -63,7 +70,7 @@ fn trace(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit);
         if bsdf.has_non_delta() {
-            l += beta * sample_one_light(prep, &hit, &bsdf, wo, s, rays);
+            l += beta * sample_one_light(prep, &hit, &bsdf, wo, s, rays, true);
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
@@ -90,9 +97,18 @@ fn trace(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &
     l
 }
 
-/// Direct light at `hit` from one light chosen by power, sampled on the light and weighted by MIS against BSDF
-/// sampling (point lights take the full weight).
-pub fn sample_one_light(prep: &Prepared, hit: &Hit, bsdf: &Bsdf, wo: Vec3A, s: &mut Sampler, rays: &mut u64) -> Rgb {
+/// Direct light at `hit` from one light chosen by power, sampled on the light. With `mis`, area-light samples
+/// are weighted by the power heuristic against BSDF sampling (the caller then adds BSDF-sampled emission with
+/// the complementary weight); without, light sampling carries the full estimate.
+pub fn sample_one_light(
+    prep: &Prepared,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3A,
+    s: &mut Sampler,
+    rays: &mut u64,
+    mis: bool,
+) -> Rgb {
     let (u, u2) = (s.next_f32(), s.next_2d());
     let Some((i, pmf)) = prep.lights.choose(u) else { return Rgb::ZERO };
     let light = &prep.lights.lights[i];
@@ -109,9 +125,159 @@ pub fn sample_one_light(prep: &Prepared, hit: &Hit, bsdf: &Bsdf, wo: Vec3A, s: &
     let cos = ls.wi.dot(hit.ns).abs();
     if ls.delta {
         f * ls.li * (cos / pmf)
+    } else if !mis {
+        f * ls.li * (cos / (pmf * ls.pdf))
     } else {
         let light_pdf = pmf * ls.pdf;
         let w = power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi));
         f * ls.li * (cos * w / light_pdf)
     }
+}
+
+/// The photon maps a photon method reads, and how it gathers.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct PhotonMaps {
+    /// Every photon at a non-delta surface.
+    pub global: PhotonMap,
+    /// Light → specular⁺ → diffuse photons (for `final-gather`, on scenes with mirror or glass).
+    pub caustic: Option<PhotonMap>,
+    /// The radiance estimate's settings, with the radius resolved to scene units.
+    pub estimator: Estimator,
+}
+
+thread_local! {
+    /// Gather scratch of each rendering thread: no allocation per estimate.
+    static SCRATCH: std::cell::RefCell<Vec<(u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Reflected radiance at `hit` towards `wo` from a photon map, through the non-delta part of `bsdf`.
+pub fn photon_radiance(map: &PhotonMap, est: &Estimator, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> Rgb {
+    let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+    SCRATCH.with_borrow_mut(|scratch| {
+        map.estimate(est, hit.p, n, hit.object, |wi| bsdf.f(wo, wi, TransportMode::Radiance), scratch)
+    })
+}
+
+/// Progressive photon mapping's gather at `hit`: flux `Σ f·Φ` of the accepted photons and their count.
+pub fn photon_flux(map: &PhotonMap, est: &Estimator, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> (Rgb, usize) {
+    let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+    SCRATCH.with_borrow_mut(|scratch| {
+        map.gather_flux(est, hit.p, n, hit.object, |wi| bsdf.f(wo, wi, TransportMode::Radiance), scratch)
+    })
+}
+
+/// A camera path followed through delta lobes to its first non-delta vertex: the emission it saw on the way,
+/// and, if it found one, the vertex.
+pub struct VisiblePoint {
+    /// Emission seen through delta lobes (already weighted).
+    pub le: Rgb,
+    /// Throughput to the vertex, the vertex, its BSDF and the direction back along the path.
+    pub vertex: Option<(Rgb, Hit, Bsdf, Vec3A)>,
+}
+
+/// Follows `ray` through mirror and glass to the first surface with a non-delta component. At a surface with
+/// both (the mixture), the path continues only if the delta lobe is sampled, and that surface is the vertex.
+pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &mut u64) -> VisiblePoint {
+    let mut beta = Rgb::ONE;
+    let mut le = Rgb::ZERO;
+    for _ in 0..=max_depth {
+        *rays += 1;
+        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+        let wo = -ray.d;
+        if hit.light != NONE
+            && let Some(light) = prep.lights.lights.get(hit.light as usize)
+        {
+            le += beta * light.le(&hit, wo);
+        }
+        let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        let bsdf = material.bsdf(&hit);
+        if bsdf.has_non_delta() {
+            return VisiblePoint { le, vertex: Some((beta, hit, bsdf, wo)) };
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
+        if !(bs.pdf > 0.0) {
+            break;
+        }
+        beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        if !beta.is_finite() || beta == Rgb::ZERO {
+            break;
+        }
+        ray = spawn(&hit, bs.wi);
+    }
+    VisiblePoint { le, vertex: None }
+}
+
+/// The photon methods `photon-map` and `final-gather` along one camera ray.
+fn photon_li(
+    prep: &Prepared,
+    maps: &PhotonMaps,
+    settings: &RenderSettings,
+    ray: Ray,
+    s: &mut Sampler,
+    rays: &mut u64,
+) -> Rgb {
+    let mut l = Rgb::ZERO;
+    let mut ray = ray;
+    let mut beta = Rgb::ONE;
+    // A mixture surface may send the path on through its delta lobe: follow a few such continuations.
+    for _ in 0..=settings.max_depth {
+        let vp = visible_point(prep, settings.max_depth, ray, s, rays);
+        l += beta * vp.le;
+        let Some((b, hit, bsdf, wo)) = vp.vertex else { break };
+        beta *= b;
+        match settings.integrator {
+            Integrator::FinalGather => {
+                l += beta * sample_one_light(prep, &hit, &bsdf, wo, s, rays, false);
+                if let Some(caustic) = &maps.caustic {
+                    l += beta * photon_radiance(caustic, &maps.estimator, &hit, &bsdf, wo);
+                }
+                l += beta * final_gather(prep, maps, settings, &hit, &bsdf, wo, s, rays);
+            }
+            _ => l += beta * photon_radiance(&maps.global, &maps.estimator, &hit, &bsdf, wo),
+        }
+        // Continue only through a delta lobe: the non-delta part is what the estimate above counted.
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
+        if !bs.delta || !(bs.pdf > 0.0) {
+            break;
+        }
+        beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        if !beta.is_finite() || beta == Rgb::ZERO {
+            break;
+        }
+        ray = spawn(&hit, bs.wi);
+    }
+    l
+}
+
+/// Indirect light at `hit` by final gathering: BSDF-sampled rays (non-delta lobes) to the next non-delta
+/// surface, through mirror and glass, where the global map gives the radiance coming back. Emission found by
+/// these rays is not counted: direct light and caustics have their own estimates.
+#[allow(clippy::too_many_arguments)]
+fn final_gather(
+    prep: &Prepared,
+    maps: &PhotonMaps,
+    settings: &RenderSettings,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3A,
+    s: &mut Sampler,
+    rays: &mut u64,
+) -> Rgb {
+    let n = settings.photons.final_gather_rays.max(1);
+    let mut sum = Rgb::ZERO;
+    for _ in 0..n {
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { continue };
+        if bs.delta || !(bs.pdf > 0.0) {
+            continue;
+        }
+        let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        let vp = visible_point(prep, settings.max_depth, spawn(hit, bs.wi), s, rays);
+        if let Some((b, h2, bsdf2, wo2)) = vp.vertex {
+            sum += w * b * photon_radiance(&maps.global, &maps.estimator, &h2, &bsdf2, wo2);
+        }
+    }
+    sum / n as f32
 }

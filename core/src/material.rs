@@ -111,10 +111,18 @@ impl From<[f32; 3]> for Texture {
     }
 }
 
+/// The binary form of [`Texture`] (serde's default enum representation, which bincode can read).
+#[derive(Serialize, Deserialize)]
+enum TextureBinary {
+    Constant([f32; 3]),
+}
+
 impl Serialize for Texture {
-    /// A grey constant as a number, any other constant as `[r, g, b]`.
+    /// In text formats a grey constant as a number, any other constant as `[r, g, b]`; in binary formats a
+    /// plain enum.
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         match self {
+            Texture::Constant(c) if !s.is_human_readable() => TextureBinary::Constant(c.to_array()).serialize(s),
             Texture::Constant(c) if c.x == c.y && c.y == c.z => s.serialize_f32(c.x),
             Texture::Constant(c) => {
                 let mut seq = s.serialize_seq(Some(3))?;
@@ -129,7 +137,13 @@ impl Serialize for Texture {
 
 impl<'de> Deserialize<'de> for Texture {
     fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        d.deserialize_any(TextureVisitor)
+        if d.is_human_readable() {
+            d.deserialize_any(TextureVisitor)
+        } else {
+            match TextureBinary::deserialize(d)? {
+                TextureBinary::Constant(c) => Ok(Texture::from(c)),
+            }
+        }
     }
 }
 
@@ -172,8 +186,12 @@ impl<'de> Visitor<'de> for TextureVisitor {
 }
 
 /// A surface material, exactly as a `[materials.NAME]` table declares it (see the module docs).
+///
+/// Serde: text formats (TOML) use the scene-file form, internally tagged by `type`; binary formats (bincode,
+/// which cannot read an internal tag) use a plain enum, so that [`crate::prepare::Prepared`] can carry
+/// materials to workers.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+#[serde(remote = "Self", tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum Material {
     /// Ideal diffuse reflection.
     Lambert {
@@ -226,6 +244,53 @@ pub enum Material {
         #[serde(default = "default_eta")]
         eta: f32,
     },
+}
+
+/// The binary form of [`Material`]: the same fields in declaration order, in serde's default (externally
+/// tagged) enum representation.
+#[derive(Serialize, Deserialize)]
+enum MaterialBinary {
+    Lambert(Texture),
+    Phong(Texture, Texture, f32),
+    Mirror(Texture),
+    Dielectric(f32, Texture),
+    Mix(Texture, f32, f32, f32, f32),
+}
+
+impl Serialize for Material {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if s.is_human_readable() {
+            // The derived scene-file form (`remote = "Self"` makes it an inherent function).
+            return Material::serialize(self, s);
+        }
+        match self.clone() {
+            Material::Lambert { albedo } => MaterialBinary::Lambert(albedo),
+            Material::Phong { diffuse, specular, exponent } => MaterialBinary::Phong(diffuse, specular, exponent),
+            Material::Mirror { reflectance } => MaterialBinary::Mirror(reflectance),
+            Material::Dielectric { eta, tint } => MaterialBinary::Dielectric(eta, tint),
+            Material::Mix { color, diffuse, specular, transmission, eta } => {
+                MaterialBinary::Mix(color, diffuse, specular, transmission, eta)
+            }
+        }
+        .serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for Material {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        if d.is_human_readable() {
+            return Material::deserialize(d);
+        }
+        Ok(match MaterialBinary::deserialize(d)? {
+            MaterialBinary::Lambert(albedo) => Material::Lambert { albedo },
+            MaterialBinary::Phong(diffuse, specular, exponent) => Material::Phong { diffuse, specular, exponent },
+            MaterialBinary::Mirror(reflectance) => Material::Mirror { reflectance },
+            MaterialBinary::Dielectric(eta, tint) => Material::Dielectric { eta, tint },
+            MaterialBinary::Mix(color, diffuse, specular, transmission, eta) => {
+                Material::Mix { color, diffuse, specular, transmission, eta }
+            }
+        })
+    }
 }
 
 fn default_albedo() -> Texture {
@@ -469,6 +534,20 @@ mod tests {
     }
 
     #[test]
+    fn binary_round_trip() {
+        // Prepared scenes travel to workers through bincode, which cannot read the scene file's internal tag.
+        let all = vec![
+            Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]) },
+            Material::Phong { diffuse: 0.2.into(), specular: 0.7.into(), exponent: 8.0 },
+            Material::Mirror { reflectance: 0.9.into() },
+            Material::Dielectric { eta: 1.33, tint: [1.0, 0.9, 0.8].into() },
+            Material::Mix { color: 0.5.into(), diffuse: 0.1, specular: 0.2, transmission: 0.3, eta: 1.3 },
+        ];
+        let bytes = crate::codec::encode(&all).unwrap();
+        assert_eq!(crate::codec::decode::<Vec<Material>>(&bytes, bytes.len()).unwrap(), all);
+    }
+
+    #[test]
     fn validation_names_the_field() {
         let cases = [
             (Material::Lambert { albedo: 1.2.into() }, "albedo"),
@@ -490,6 +569,33 @@ mod tests {
         }
         let ok = Material::Mix { color: 0.5.into(), diffuse: 0.1, specular: 0.2, transmission: 0.7, eta: 1.5 };
         ok.validate().unwrap();
+    }
+
+    #[test]
+    fn bsdf_evaluates_textures_and_keeps_both_normals() {
+        use crate::bsdf::TransportMode;
+        use crate::geometry::{NONE, PrimRef};
+        let ns = Vec3A::new(0.1, 0.0, 1.0).normalize();
+        let hit = Hit {
+            t: 1.0,
+            p: Vec3A::new(1.0, 2.0, 3.0),
+            n: Vec3A::Z,
+            ns,
+            uv: Vec2::new(0.25, 0.5),
+            material: 0,
+            light: NONE,
+            object: 0,
+            prim: PrimRef::Plane(0),
+        };
+        let b = Material::Lambert { albedo: Texture::from([0.1, 0.2, 0.3]) }.bsdf(&hit);
+        assert_eq!(b.bxdf, Bxdf::Lambert { r: Rgb::new(0.1, 0.2, 0.3) });
+        assert_eq!((b.frame.n, b.ng), (ns, Vec3A::Z));
+        // Glass seen from below the geometric normal is seen from inside: leaving into air refracts away from
+        // the normal, so a ray at 30° inside leaves at asin(1.5·sin 30°) ≈ 48.6°.
+        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into() }.bsdf(&Hit { ns: Vec3A::Z, ..hit });
+        let wo = -Vec3A::new(0.5, 0.0, 0.75f32.sqrt());
+        let s = glass.sample(wo, 0.999, Vec2::ZERO, TransportMode::Importance).unwrap();
+        assert!(s.wi.z > 0.0 && (s.wi.x.abs() - 0.75).abs() < 1e-5, "{s:?}");
     }
 
     #[test]

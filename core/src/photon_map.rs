@@ -13,7 +13,7 @@
 //! ```
 //!
 //! ## The estimate
-//! Reflected radiance at `p` towards `wo` (Jensen, *Realistic Image Synthesis Using Photon Mapping*, eq. 7.6,
+//! Reflected radiance at `p` towards `wo` (Jensen, *Realistic Image Synthesis Using Photon Mapping*, 2001,
 //! with a kernel in place of the box):
 //!
 //! `L(p, wo) ≈ Σ_p f_r(p, wo, wi_p) · Φ_p · K(d_p / r) / r²`
@@ -263,7 +263,7 @@ impl PhotonMap {
         self.tree.query(&q).within::<Metric>(r2).unsorted().visit(|r| out.push((r.item, r.distance)));
     }
 
-    /// Reflected radiance at `p` (geometric normal `n`, on object `object`) from these photons; see the module
+    /// Reflected radiance at `p` (unit geometric normal `n`, on object `object`) from these photons; see the module
     /// documentation for the estimate and its filters. `f` is the BSDF for an incident direction `wi` (towards
     /// the light, world space) at the fixed outgoing direction, without the cosine. `scratch` is reused
     /// storage for the gather.
@@ -689,5 +689,46 @@ mod tests {
             )
             .is_err()
         );
+    }
+}
+
+impl PhotonMap {
+    /// Progressive photon mapping's gather: the flux `Σ f(wi)·Φ` of the photons within `radius` of `p` that the
+    /// estimator's filters accept, and their count `M` (no kernel, no division by the area).
+    pub fn gather_flux(
+        &self,
+        est: &Estimator,
+        p: Vec3A,
+        n: Vec3A,
+        object: u32,
+        f: impl Fn(Vec3A) -> Rgb,
+        scratch: &mut Vec<(u32, f32)>,
+    ) -> (Rgb, usize) {
+        let radius = match est.gather {
+            Gather::Radius { radius } => radius,
+            Gather::KNearest { max_radius, .. } => max_radius,
+        };
+        self.within(p, radius * radius, scratch);
+        let max_plane_distance = est.disc.map(|d| d * radius);
+        let mut flux = Rgb::ZERO;
+        let mut m = 0;
+        for &(index, _) in scratch.iter() {
+            let ph = &self.photons[index as usize];
+            if est.same_object && ph.object != object {
+                continue;
+            }
+            if let Some(max_plane_distance) = max_plane_distance
+                && (ph.position() - p).dot(n).abs() > max_plane_distance
+            {
+                continue;
+            }
+            let wi = ph.wi();
+            if wi.dot(n) <= 0.0 || ph.normal().dot(n) <= 0.0 {
+                continue;
+            }
+            flux += f(wi) * ph.phi();
+            m += 1;
+        }
+        (flux, m)
     }
 }

@@ -4,9 +4,12 @@
 use crate::Rgb;
 use crate::camera::Camera;
 use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
+use crate::integrator::PhotonMaps;
 use crate::light::{Light, LightSet};
 use crate::material::Material;
-use crate::scene::{Emission, LightSpec, Object, RenderSettings, Scene, SceneError};
+use crate::photon::{PhotonKind, trace_photons};
+use crate::photon_map::{Estimator, Gather, PhotonMap};
+use crate::scene::{Emission, GatherMode, Integrator, LightSpec, Object, RenderSettings, Scene, SceneError};
 use crate::shapes::{Plane, Shape, Sphere, Triangle};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
@@ -24,6 +27,8 @@ pub struct Prepared {
     pub lights: LightSet,
     /// Render settings.
     pub settings: RenderSettings,
+    /// Photon maps, when the method needs them.
+    pub photons: Option<PhotonMaps>,
 }
 
 impl Prepared {
@@ -136,13 +141,63 @@ impl Prepared {
         for (p, l) in geometry.prims.iter_mut().zip(light_of_prim) {
             p.light = l;
         }
-        Ok(Self {
+        let mut prep = Self {
             camera: Camera::new(&scene.camera),
             geometry,
             materials,
             lights: LightSet::new(lights),
             settings: scene.render.clone(),
+            photons: None,
+        };
+        if prep.settings.integrator.needs_photon_maps() {
+            prep.photons = Some(prep.build_photon_maps().map_err(|message| SceneError::Invalid {
+                path: scene_path.into(),
+                field: "render.photons".into(),
+                message,
+            })?);
+        }
+        Ok(prep)
+    }
+
+    /// The gather radius in scene units: `render.photons.radius`, or 2% of the diagonal of the bounding box of
+    /// the bounded primitives (1 unit for a scene of planes only).
+    pub fn photon_radius(&self) -> f32 {
+        self.settings.photons.radius.unwrap_or_else(|| {
+            let b = self.geometry.bounds();
+            let d = (b.max - b.min).length();
+            if d.is_finite() && d > 0.0 { 0.02 * d } else { 1.0 }
         })
+    }
+
+    /// The radiance estimator of the photon settings.
+    pub fn estimator(&self) -> Estimator {
+        let ph = &self.settings.photons;
+        let radius = self.photon_radius();
+        let gather = match ph.gather {
+            GatherMode::KNearest => Gather::KNearest { k: ph.k, max_radius: radius },
+            GatherMode::Radius => Gather::Radius { radius },
+        };
+        Estimator { gather, kernel: ph.kernel, disc: ph.disc, same_object: ph.same_object }
+    }
+
+    /// Traces and builds the photon maps of the method: the global map, and the caustic map for
+    /// `final-gather` when some material has a delta (mirror or glass) component.
+    pub fn build_photon_maps(&self) -> Result<PhotonMaps, String> {
+        let ph = &self.settings.photons;
+        let global = trace_photons(self, u64::from(ph.global), 0, PhotonKind::Global);
+        tracing::info!(paths = global.paths, photons = global.photons.len(), "global photon map traced");
+        let global = PhotonMap::build(global.photons).map_err(|e| e.to_string())?;
+        let caustic = if self.settings.integrator == Integrator::FinalGather
+            && self.materials.iter().any(Material::has_specular)
+        {
+            // Pass index 1 keeps the caustic streams apart from the global ones.
+            let c = trace_photons(self, u64::from(ph.caustic), 1, PhotonKind::Caustic);
+            tracing::info!(paths = c.paths, photons = c.photons.len(), "caustic photon map traced");
+            Some(PhotonMap::build(c.photons).map_err(|e| e.to_string())?)
+        } else {
+            None
+        };
+        Ok(PhotonMaps { global, caustic, estimator: self.estimator() })
     }
 
     /// Loads and prepares a scene file.

@@ -25,7 +25,7 @@
 //! width = 0.5
 //! height = 0.4
 //! material = "white"
-//! emission = [17.0, 12.0, 4.0]
+//! emission = { radiance = [17.0, 12.0, 4.0] }
 //! ```
 //! Paths (meshes) resolve relative to the scene file's folder.
 
@@ -99,7 +99,7 @@ pub struct CameraSpec {
     pub focus_distance: Option<f32>,
 }
 
-/// How pixels are computed.
+/// How pixels are computed: the method, in the scene file (`render.integrator`) and on the command line.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Integrator {
@@ -108,15 +108,150 @@ pub enum Integrator {
     Path,
     /// Direct lighting at the first non-specular hit, following mirror and glass.
     Direct,
+    /// Direct visualisation of the global photon map at the first non-specular hit (what the origin did).
+    PhotonMap,
+    /// Jensen's two passes: direct light by shadow rays, caustics from the caustic map, indirect light from
+    /// the global map through final gathering.
+    FinalGather,
+    /// Stochastic progressive photon mapping (Hachisuka & Jensen 2009): passes of fresh photons with a
+    /// shrinking per-pixel radius; consistent, it converges to the path tracer's answer.
+    Progressive,
+}
+
+impl Integrator {
+    /// Every integrator, in the order the documentation lists them.
+    pub const ALL: [Integrator; 5] =
+        [Integrator::Path, Integrator::Direct, Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive];
+
+    /// The name used in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Path => "path",
+            Integrator::Direct => "direct",
+            Integrator::PhotonMap => "photon-map",
+            Integrator::FinalGather => "final-gather",
+            Integrator::Progressive => "progressive",
+        }
+    }
+
+    /// Whether this method needs photon maps built before rendering.
+    pub fn needs_photon_maps(self) -> bool {
+        matches!(self, Integrator::PhotonMap | Integrator::FinalGather)
+    }
+}
+
+impl std::fmt::Display for Integrator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
 }
 
 impl std::str::FromStr for Integrator {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "path" => Ok(Self::Path),
-            "direct" => Ok(Self::Direct),
-            _ => Err(format!("unknown integrator `{s}`: expected `path` or `direct`")),
+        Self::ALL.into_iter().find(|i| i.name() == s).ok_or_else(|| {
+            let names: Vec<&str> = Self::ALL.iter().map(|i| i.name()).collect();
+            format!("unknown integrator `{s}`: expected one of {}", names.join(", "))
+        })
+    }
+}
+
+/// How photons are gathered for a radiance estimate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GatherMode {
+    /// The `k` nearest photons, within `max_radius`.
+    #[default]
+    KNearest,
+    /// Every photon within `radius`.
+    Radius,
+}
+
+fn default_global() -> u32 {
+    200_000
+}
+fn default_caustic() -> u32 {
+    200_000
+}
+fn default_k() -> u32 {
+    100
+}
+fn default_kernel() -> crate::photon_map::Kernel {
+    crate::photon_map::Kernel::Epanechnikov
+}
+fn default_final_gather_rays() -> u32 {
+    32
+}
+fn default_passes() -> u32 {
+    32
+}
+fn default_pass_photons() -> u32 {
+    100_000
+}
+fn default_alpha() -> f32 {
+    2.0 / 3.0
+}
+
+/// Photon-mapping settings: the `[photons]` table. Only the photon methods read it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhotonSettings {
+    /// Photon paths emitted for the global map; default 200,000.
+    #[serde(default = "default_global")]
+    pub global: u32,
+    /// Photon paths emitted for the caustic map (built only for `final-gather` on scenes with mirror or
+    /// glass); default 200,000.
+    #[serde(default = "default_caustic")]
+    pub caustic: u32,
+    /// `k-nearest` (default) or `radius`.
+    #[serde(default)]
+    pub gather: GatherMode,
+    /// Photons per k-nearest estimate (≥ 2); default 100.
+    #[serde(default = "default_k")]
+    pub k: u32,
+    /// Fixed gather radius, and the largest k-nearest radius, in scene units; default 2% of the diagonal of
+    /// the scene's bounding box. Progressive photon mapping starts from it.
+    #[serde(default)]
+    pub radius: Option<f32>,
+    /// Density-estimation kernel: `box`, `cone`, `epanechnikov` (default), `gaussian`, `linear`, `quadratic`.
+    #[serde(default = "default_kernel")]
+    pub kernel: crate::photon_map::Kernel,
+    /// Disc filter: ignore photons farther from the tangent plane than this fraction of the radius (against
+    /// light leaking round corners and through thin walls); default off.
+    #[serde(default)]
+    pub disc: Option<f32>,
+    /// Use only photons stored on the object that was hit (the origin's filter); default false.
+    #[serde(default)]
+    pub same_object: bool,
+    /// Final-gather rays per camera hit (`final-gather`); default 32.
+    #[serde(default = "default_final_gather_rays")]
+    pub final_gather_rays: u32,
+    /// Passes of progressive photon mapping; default 32.
+    #[serde(default = "default_passes")]
+    pub passes: u32,
+    /// Photon paths per progressive pass; default 100,000.
+    #[serde(default = "default_pass_photons")]
+    pub pass_photons: u32,
+    /// Progressive radius reduction α in (0, 1); default 2/3.
+    #[serde(default = "default_alpha")]
+    pub alpha: f32,
+}
+
+impl Default for PhotonSettings {
+    fn default() -> Self {
+        Self {
+            global: default_global(),
+            caustic: default_caustic(),
+            gather: GatherMode::KNearest,
+            k: default_k(),
+            radius: None,
+            kernel: default_kernel(),
+            disc: None,
+            same_object: false,
+            final_gather_rays: default_final_gather_rays(),
+            passes: default_passes(),
+            pass_photons: default_pass_photons(),
+            alpha: default_alpha(),
         }
     }
 }
@@ -150,6 +285,9 @@ pub struct RenderSettings {
     /// Exposure in stops applied before tone mapping to 8-bit images; default 0.
     #[serde(default)]
     pub exposure: f32,
+    /// Photon-mapping settings.
+    #[serde(default)]
+    pub photons: PhotonSettings,
 }
 
 impl Default for RenderSettings {
@@ -160,12 +298,13 @@ impl Default for RenderSettings {
             max_depth: default_max_depth(),
             integrator: Integrator::Path,
             exposure: 0.0,
+            photons: PhotonSettings::default(),
         }
     }
 }
 
-/// Scale of a mesh: one factor or one per axis.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// Scale of a mesh: one factor or one per axis. In the scene file: a number or `[x, y, z]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 #[serde(untagged)]
 pub enum Scale {
     /// The same factor on every axis.
@@ -177,6 +316,48 @@ pub enum Scale {
 impl Default for Scale {
     fn default() -> Self {
         Scale::Uniform(1.0)
+    }
+}
+
+// By hand rather than `#[serde(untagged)]`, whose error ("data did not match any variant") says nothing of
+// what was expected.
+impl<'de> Deserialize<'de> for Scale {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(ScaleVisitor)
+    }
+}
+
+/// Reads a number or an `[x, y, z]` array.
+struct ScaleVisitor;
+
+impl<'de> serde::de::Visitor<'de> for ScaleVisitor {
+    type Value = Scale;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a number or an [x, y, z] array")
+    }
+
+    fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Scale, E> {
+        Ok(Scale::Uniform(v as f32))
+    }
+
+    fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Scale, E> {
+        Ok(Scale::Uniform(v as f32))
+    }
+
+    fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Scale, E> {
+        Ok(Scale::Uniform(v as f32))
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Scale, A::Error> {
+        let mut v = [0.0f32; 3];
+        for (i, x) in v.iter_mut().enumerate() {
+            *x = seq.next_element()?.ok_or_else(|| serde::de::Error::invalid_length(i, &self))?;
+        }
+        if seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+            return Err(serde::de::Error::invalid_length(4, &self));
+        }
+        Ok(Scale::PerAxis(Vec3::from_array(v)))
     }
 }
 
@@ -339,10 +520,12 @@ pub enum LightSpec {
 }
 
 /// Why a scene could not be loaded. Every variant names the file, and the line or the field.
-#[derive(Debug, thiserror::Error)]
+///
+/// The message of every variant is complete: it includes its cause (the I/O error, the mesh's `file:line`), so
+/// `source()` is `None` and a chain printer (`anyhow`'s `{:#}`) does not repeat the cause.
+#[derive(Debug)]
 pub enum SceneError {
     /// The file could not be read.
-    #[error("{path}: cannot read the scene file: {source}")]
     Io {
         /// The scene file.
         path: PathBuf,
@@ -350,7 +533,6 @@ pub enum SceneError {
         source: std::io::Error,
     },
     /// TOML syntax or a field of the wrong name or type (the message gives line and column).
-    #[error("{path}: {message}")]
     Parse {
         /// The scene file.
         path: PathBuf,
@@ -358,7 +540,6 @@ pub enum SceneError {
         message: String,
     },
     /// A field whose value is not allowed.
-    #[error("{path}: {field}: {message}")]
     Invalid {
         /// The scene file.
         path: PathBuf,
@@ -368,7 +549,6 @@ pub enum SceneError {
         message: String,
     },
     /// A mesh could not be loaded.
-    #[error("{path}: {field}: {source}")]
     Mesh {
         /// The scene file.
         path: PathBuf,
@@ -378,6 +558,21 @@ pub enum SceneError {
         source: crate::mesh::MeshError,
     },
 }
+
+impl std::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SceneError::Io { path, source } => {
+                write!(f, "{}: cannot read the scene file: {source}", path.display())
+            }
+            SceneError::Parse { path, message } => write!(f, "{}: {}", path.display(), message.trim_end()),
+            SceneError::Invalid { path, field, message } => write!(f, "{}: {field}: {message}", path.display()),
+            SceneError::Mesh { path, field, source } => write!(f, "{}: {field}: {source}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for SceneError {}
 
 impl Scene {
     /// Reads, parses and validates a scene file.
@@ -400,11 +595,13 @@ impl Scene {
         let c = &self.camera;
         finite3("camera.eye", c.eye)?;
         finite3("camera.look_at", c.look_at)?;
-        finite3("camera.up", c.up)?;
-        if (c.look_at - c.eye).length() == 0.0 {
+        nonzero3("camera.up", c.up)?;
+        let view = c.look_at - c.eye;
+        if !view.is_finite() || view.length() == 0.0 {
             return Err(("camera.look_at".into(), "must differ from camera.eye".into()));
         }
-        if c.up.cross(c.look_at - c.eye).length() == 0.0 {
+        // Relative, so that a nearly parallel `up` is caught whatever the scene's scale.
+        if c.up.cross(view).length() <= 1e-6 * c.up.length() * view.length() {
             return Err(("camera.up".into(), "must not be parallel to the viewing direction".into()));
         }
         if !(c.fov > 0.0 && c.fov < 180.0) {
@@ -425,6 +622,27 @@ impl Scene {
         }
         if r.max_depth == 0 {
             return Err(("render.max_depth".into(), "expected at least 1 bounce".into()));
+        }
+        let ph = &r.photons;
+        let pf = |s: &str| format!("render.photons.{s}");
+        if ph.k < 2 {
+            return Err((pf("k"), format!("expected at least 2 photons, found {}", ph.k)));
+        }
+        if let Some(radius) = ph.radius {
+            positive(&pf("radius"), radius)?;
+        }
+        if let Some(disc) = ph.disc {
+            positive(&pf("disc"), disc)?;
+        }
+        if !(ph.alpha > 0.0 && ph.alpha < 1.0) {
+            return Err((pf("alpha"), format!("expected a number in (0, 1), found {}", ph.alpha)));
+        }
+        for (name, v) in
+            [("passes", ph.passes), ("pass_photons", ph.pass_photons), ("final_gather_rays", ph.final_gather_rays)]
+        {
+            if v == 0 {
+                return Err((pf(name), "expected at least 1".into()));
+            }
         }
         if !r.exposure.is_finite() {
             return Err(("render.exposure".into(), "expected a finite number of stops".into()));
@@ -459,6 +677,11 @@ impl Scene {
                 Object::Triangle { vertices, emission, .. } => {
                     for (k, v) in vertices.iter().enumerate() {
                         finite3(&f(&format!("vertices[{k}]")), *v)?;
+                    }
+                    // A triangle without area can never be hit: as a light it would silently emit nothing.
+                    let [p0, p1, p2] = *vertices;
+                    if (p1 - p0).cross(p2 - p0).length() == 0.0 {
+                        return Err((f("vertices"), "the vertices are collinear: the triangle has no area".into()));
                     }
                     emission
                 }
@@ -508,7 +731,8 @@ impl Object {
         match (center, corner) {
             (Some(c), None) => {
                 if u.is_some() || v.is_some() {
-                    return Err(("u".into(), "`u` and `v` go with `corner`, not with `center`".into()));
+                    let field = if u.is_some() { "u" } else { "v" };
+                    return Err((field.into(), "`u` and `v` go with `corner`, not with `center`".into()));
                 }
                 finite3("center", *c)?;
                 let n = normal.ok_or(("normal".into(), "a rectangle with `center` needs `normal`".to_string()))?;

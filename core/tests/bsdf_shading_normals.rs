@@ -44,7 +44,10 @@ fn tilted_shading_normals_leak_no_light() {
                     Bxdf::Mix { .. } => Vec3A::splat(1.0 + 1e-5),
                     Bxdf::Lambert { .. } | Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => albedo * (1.0 + 1e-5),
                 };
-                assert!(weight.cmple(bound).all() && weight.min_element() >= 0.0 && weight.is_finite(), "{at}: {weight}");
+                assert!(
+                    weight.cmple(bound).all() && weight.min_element() >= 0.0 && weight.is_finite(),
+                    "{at}: {weight}"
+                );
             }
             assert!(some > 2_000, "{name}: only {some} samples");
             assert_eq!(crossed > 0, transmits(&bxdf), "{name}: {crossed} samples crossed the surface");

@@ -20,7 +20,7 @@ use photon_core::math::cosine_hemisphere;
 use photon_core::photon_map::{Estimator, Gather, Kernel, Photon, PhotonMap};
 use photon_core::rng::{Domain, Sampler};
 
-const SEED: u64 = 0x5EED_0F_1157;
+const SEED: u64 = 0x5EED_F00D;
 /// Reflectance of the Lambertian surface.
 const RHO: f32 = 0.8;
 /// Irradiance carried by each set of photons, W/m² per channel (the square has unit area).

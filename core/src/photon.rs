@@ -1,0 +1,178 @@
+//! Photon emission and tracing.
+//!
+//! Photons leave the lights in proportion to their power: light `l` emits `round(N · Φ_l / Φ)` of the `N`
+//! paths (at least one if it has power), each carrying `Φ_l / N_l`, so the emitted power adds up to the
+//! lights' power exactly. A point light emits isotropically (Φ = 4πI); a diffuse area light from a uniform
+//! point with a cosine-weighted direction (Φ = πLA per side). At every surface with a non-delta component a
+//! photon is stored; the BSDF is sampled in importance (flux) mode and Russian roulette on the sampled weight
+//! `w = f·|cos θ|/pdf` keeps the path with probability `q = min(1, max(w))`, dividing its power by `q`: a
+//! photon's power never grows where `w ≤ 1` (every material here but the Phong lobe near grazing angles).
+//! Photon `i` of pass `p` draws from the stream `(seed, p, i)`; paths are traced in parallel in fixed chunks and
+//! concatenated in order, so the maps are bit-identical whatever the thread count.
+
+use crate::Rgb;
+use crate::bsdf::TransportMode;
+use crate::geometry::Ray;
+use crate::integrator::spawn;
+use crate::light::Light;
+use crate::math::{Frame, cosine_hemisphere, uniform_sphere};
+use crate::photon_map::Photon;
+use crate::prepare::Prepared;
+use crate::rng::Sampler;
+use rayon::prelude::*;
+
+/// Paths traced per parallel chunk (fixed, so results do not depend on the thread pool).
+const CHUNK: u64 = 4096;
+
+/// Which photons a tracing run keeps.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PhotonKind {
+    /// Every photon at a non-delta surface (light → anything → diffuse).
+    Global,
+    /// Only photons whose path from the light was specular until this diffuse hit (light → specular⁺ →
+    /// diffuse); the path ends there.
+    Caustic,
+    /// Photons that have bounced at least once (light → anything⁺ → diffuse): indirect light, for methods
+    /// that compute direct light by shadow rays.
+    Indirect,
+}
+
+/// The photons of one tracing run and how many paths were emitted.
+#[derive(Clone, Debug, Default)]
+pub struct Traced {
+    /// Stored photons, in path order.
+    pub photons: Vec<Photon>,
+    /// Paths emitted.
+    pub paths: u64,
+    /// Power emitted (W) per channel, summed over all paths.
+    pub emitted: [f64; 3],
+}
+
+/// How many of `n` paths each light emits: proportional to the luminance of its power, every powered light at
+/// least one path, the counts summing to `max(n, number of powered lights)`.
+pub fn paths_per_light(prep: &Prepared, n: u64) -> Vec<u64> {
+    let lum: Vec<f64> =
+        prep.lights.lights.iter().map(|l| f64::from(crate::math::luminance(l.power()).max(0.0))).collect();
+    let total: f64 = lum.iter().sum();
+    if total <= 0.0 || n == 0 {
+        return vec![0; lum.len()];
+    }
+    // Largest-remainder apportionment: deterministic, exact total.
+    let raw: Vec<f64> = lum.iter().map(|&w| n as f64 * w / total).collect();
+    let mut counts: Vec<u64> = raw.iter().map(|&r| r.floor() as u64).collect();
+    let mut left = n.saturating_sub(counts.iter().sum());
+    let mut order: Vec<usize> = (0..raw.len()).collect();
+    order.sort_by(|&a, &b| (raw[b] - raw[b].floor()).total_cmp(&(raw[a] - raw[a].floor())).then(a.cmp(&b)));
+    for &i in &order {
+        if left == 0 {
+            break;
+        }
+        if lum[i] > 0.0 {
+            counts[i] += 1;
+            left -= 1;
+        }
+    }
+    for (c, &w) in counts.iter_mut().zip(&lum) {
+        if w > 0.0 && *c == 0 {
+            *c = 1;
+        }
+    }
+    counts
+}
+
+/// Traces `n` photon paths of pass `pass` and keeps the photons of `kind`.
+pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Traced {
+    let counts = paths_per_light(prep, n);
+    let total: u64 = counts.iter().sum();
+    // Light of path i: by ranges of the path index.
+    let mut starts = Vec::with_capacity(counts.len());
+    let mut acc = 0u64;
+    for &c in &counts {
+        starts.push(acc);
+        acc += c;
+    }
+    let chunks: Vec<(Vec<Photon>, [f64; 3])> = (0..total.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let mut out = Vec::new();
+            let mut emitted = [0.0f64; 3];
+            for i in c * CHUNK..((c + 1) * CHUNK).min(total) {
+                let l = starts.partition_point(|&s| s <= i) - 1;
+                let phi = prep.lights.lights[l].power() / counts[l] as f32;
+                for (e, v) in emitted.iter_mut().zip(phi.to_array()) {
+                    *e += f64::from(v);
+                }
+                let mut s = Sampler::for_photon(prep.settings.seed, pass, i);
+                trace_path(prep, &prep.lights.lights[l], phi, &mut s, kind, &mut out);
+            }
+            (out, emitted)
+        })
+        .collect();
+    let mut traced = Traced { paths: total, ..Default::default() };
+    for (photons, e) in chunks {
+        traced.photons.extend(photons);
+        for k in 0..3 {
+            traced.emitted[k] += e[k];
+        }
+    }
+    traced
+}
+
+/// Emits one photon from `light` with power `phi` and follows it, appending the photons it stores.
+pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kind: PhotonKind, out: &mut Vec<Photon>) {
+    let (u, u2) = (s.next_2d(), s.next_2d());
+    let mut ray = match *light {
+        Light::Point { p, .. } => Ray::new(p, uniform_sphere(u)),
+        Light::Area { prim, two_sided, .. } => {
+            let Some(pr) = prep.geometry.prims.get(prim as usize) else { return };
+            let (p, n) = pr.shape.sample_area(u);
+            let mut d = cosine_hemisphere(u2);
+            let mut n = n;
+            if two_sided && s.next_f32() < 0.5 {
+                n = -n;
+            }
+            d = Frame::from_normal(n).to_world(d);
+            Ray::new(crate::math::offset_ray_origin(p, n), d)
+        }
+    };
+    let mut power = phi;
+    let mut specular_only = true;
+    for depth in 0..prep.settings.max_depth {
+        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { return };
+        let Some(material) = prep.materials.get(hit.material as usize) else { return };
+        let bsdf = material.bsdf(&hit);
+        let wo = -ray.d;
+        if bsdf.has_non_delta() {
+            let keep = match kind {
+                PhotonKind::Global => true,
+                PhotonKind::Caustic => specular_only && depth > 0,
+                PhotonKind::Indirect => depth > 0,
+            };
+            if keep {
+                // Store the normal on the side the photon arrived from.
+                let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+                out.push(Photon::new(hit.p, wo, n, power, hit.object));
+            }
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Importance) else { return };
+        if !(bs.pdf > 0.0) {
+            return;
+        }
+        let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        let q = w.max_element().min(1.0);
+        if !(q > 0.0) || s.next_f32() >= q {
+            return;
+        }
+        power *= w / q;
+        if !power.is_finite() {
+            return;
+        }
+        specular_only &= bs.delta;
+        if kind == PhotonKind::Caustic && !specular_only {
+            // Past a diffuse bounce no photon of this path can be a caustic one.
+            return;
+        }
+        ray = spawn(&hit, bs.wi);
+    }
+}
