@@ -85,6 +85,19 @@ fn gather(c: &mut Criterion) {
                 })
             });
         }
+        // Radius gathers holding the same numbers of photons on average (area 5): kiddo's k-nearest search
+        // costs several times a radius search over as many photons.
+        for k in [50.0f32, 200.0] {
+            let r2 = k * 5.0 / (std::f32::consts::PI * n as f32);
+            group.bench_function(BenchmarkId::new(format!("within_mean_{k}"), n), |b| {
+                b.iter(|| {
+                    for &(p, _) in &queries {
+                        map.within(p, r2, &mut scratch);
+                        black_box(&scratch);
+                    }
+                })
+            });
+        }
         let est = Estimator {
             gather: Gather::KNearest { k: 50, max_radius: 0.1 },
             kernel: Kernel::Epanechnikov,

@@ -51,16 +51,16 @@ fn trace(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &
         *rays += 1;
         let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
         let wo = -ray.d;
-        if hit.light != NONE {
-            if let Some(light) = prep.lights.lights.get(hit.light as usize) {
-                let le = light.le(&hit, wo);
-                if le != Rgb::ZERO {
-                    if prev_delta {
-                        l += beta * le;
-                    } else {
-                        let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(&ray, &hit);
-                        l += beta * le * power_heuristic(prev_pdf, light_pdf);
-                    }
+        if hit.light != NONE
+            && let Some(light) = prep.lights.lights.get(hit.light as usize)
+        {
+            let le = light.le(&hit, wo);
+            if le != Rgb::ZERO {
+                if prev_delta {
+                    l += beta * le;
+                } else {
+                    let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(&ray, &hit);
+                    l += beta * le * power_heuristic(prev_pdf, light_pdf);
                 }
             }
         }
@@ -74,7 +74,7 @@ fn trace(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if !(bs.pdf > 0.0) || bs.f == Rgb::ZERO {
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
             break;
         }
         beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
@@ -196,7 +196,7 @@ pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Samp
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if !(bs.pdf > 0.0) {
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 {
             break;
         }
         beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
@@ -239,7 +239,7 @@ fn photon_li(
         // Continue only through a delta lobe: the non-delta part is what the estimate above counted.
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if !bs.delta || !(bs.pdf > 0.0) {
+        if !bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
             break;
         }
         beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
@@ -270,7 +270,7 @@ fn final_gather(
     for _ in 0..n {
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { continue };
-        if bs.delta || !(bs.pdf > 0.0) {
+        if bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
             continue;
         }
         let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);

@@ -111,8 +111,8 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
     let mut traced = Traced { paths: total, ..Default::default() };
     for (photons, e) in chunks {
         traced.photons.extend(photons);
-        for k in 0..3 {
-            traced.emitted[k] += e[k];
+        for (t, v) in traced.emitted.iter_mut().zip(e) {
+            *t += v;
         }
     }
     traced
@@ -156,12 +156,12 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Importance) else { return };
-        if !(bs.pdf > 0.0) {
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 {
             return;
         }
         let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
         let q = w.max_element().min(1.0);
-        if !(q > 0.0) || s.next_f32() >= q {
+        if q.is_nan() || q <= 0.0 || s.next_f32() >= q {
             return;
         }
         power *= w / q;

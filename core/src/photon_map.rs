@@ -197,7 +197,8 @@ impl PhotonMap {
         if u32::try_from(photons.len()).is_err() {
             return Err(PhotonMapError::TooMany(photons.len()));
         }
-        if let Some(index) = photons.iter().position(|ph| ph.p.iter().any(|c| !c.is_finite() || c.abs() == f32::MAX)) {
+        let bad = |c: &f32| !c.is_finite() || c.abs() == f32::MAX;
+        if let Some(index) = photons.iter().position(|ph| ph.p.iter().any(bad)) {
             return Err(PhotonMapError::BadPosition { index, p: photons[index].p });
         }
         photons.shrink_to_fit();
@@ -247,7 +248,7 @@ impl PhotonMap {
             return;
         }
         let q: [f32; 3] = p.into();
-        // Sorted (the builder's default) so the result is capped at k.
+        // Sorted (the builder's default): the estimate reads the last result as the k-th nearest.
         let found = self.tree.query(&q).nearest_n::<Metric>(k).within(max_r2).execute();
         out.extend(found.iter().map(|r| (r.item, r.distance)));
     }
@@ -263,10 +264,10 @@ impl PhotonMap {
         self.tree.query(&q).within::<Metric>(r2).unsorted().visit(|r| out.push((r.item, r.distance)));
     }
 
-    /// Reflected radiance at `p` (unit geometric normal `n`, on object `object`) from these photons; see the module
-    /// documentation for the estimate and its filters. `f` is the BSDF for an incident direction `wi` (towards
-    /// the light, world space) at the fixed outgoing direction, without the cosine. `scratch` is reused
-    /// storage for the gather.
+    /// Reflected radiance at `p` (unit geometric normal `n`, on object `object`) from these photons; see the
+    /// module documentation for the estimate and its filters. `f` is the BSDF for an incident direction `wi`
+    /// (towards the light, world space) at the fixed outgoing direction, without the cosine. `scratch` is
+    /// reused storage for the gather.
     pub fn estimate(
         &self,
         est: &Estimator,
@@ -670,10 +671,13 @@ mod tests {
 
     #[test]
     fn estimator_reads_from_toml() {
-        let est: Estimator = toml::from_str(
-            "gather = { k_nearest = { k = 100, max_radius = 0.25 } }\nkernel = \"epanechnikov\"\ndisc = 0.25\nsame_object = false\n",
-        )
-        .unwrap();
+        let snippet = r#"
+            gather = { k_nearest = { k = 100, max_radius = 0.25 } }
+            kernel = "epanechnikov"
+            disc = 0.25
+            same_object = false
+        "#;
+        let est: Estimator = toml::from_str(snippet).unwrap();
         assert_eq!(
             est,
             Estimator {

@@ -1,6 +1,8 @@
 //! The image does not depend on threads or strips: 1 thread × 1 strip and 4 threads × 7 strips give the same
 //! bytes.
 
+#![allow(clippy::unwrap_used)]
+
 use photon_core::prepare::Prepared;
 use photon_core::render::render_strip;
 use photon_core::scene::Scene;
@@ -35,4 +37,28 @@ fn threads_and_strips_do_not_change_a_pixel() {
     }
     assert_eq!(bits(&whole.pixels), bits(&stitched));
     assert!(whole.pixels.iter().any(|&v| v > 0.0));
+}
+
+#[test]
+fn photon_methods_do_not_depend_on_strips_either() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+    for integrator in [photon_core::scene::Integrator::Progressive, photon_core::scene::Integrator::PhotonMap] {
+        let mut scene = Scene::load(&path).unwrap();
+        scene.camera.width = 16;
+        scene.camera.height = 12;
+        scene.render.integrator = integrator;
+        scene.render.spp = 2;
+        scene.render.photons.global = 5_000;
+        scene.render.photons.pass_photons = 5_000;
+        scene.render.photons.passes = 3;
+        let prep = Prepared::new(&scene, &path).unwrap();
+        let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let whole = one.install(|| render_strip(&prep, 0..12, &prep.settings, &|_| {}));
+        let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
+        let mut stitched = Vec::new();
+        for rows in [0..5, 5..6, 6..12] {
+            stitched.extend(three.install(|| render_strip(&prep, rows, &prep.settings, &|_| {})).pixels);
+        }
+        assert_eq!(bits(&whole.pixels), bits(&stitched), "{integrator}");
+    }
 }

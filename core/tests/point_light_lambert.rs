@@ -1,6 +1,8 @@
 //! A point light above a Lambert plane: the radiance leaving the plane is ρ/π · I·cos θ / r², exactly, for
 //! both integrators (the only light path is light → plane → eye).
 
+#![allow(clippy::unwrap_used)]
+
 use glam::Vec3A;
 use photon_core::geometry::Ray;
 use photon_core::prepare::Prepared;

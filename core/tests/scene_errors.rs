@@ -93,6 +93,7 @@ fn unknown_fields_are_errors_that_name_the_field_and_the_line() {
         (format!("colour = 1\n{CAMERA}"), "line 1", "`colour`", "`camera`"),
         (format!("{CAMERA}zoom = 2.0\n"), "line 6", "`zoom`", "`focus_distance`"),
         (format!("{CAMERA}[render]\nsamples = 4\n"), "line 7", "`samples`", "`spp`"),
+        (format!("{CAMERA}[render.photons]\nglobals = 4\n"), "line 7", "`globals`", "`global`"),
         (format!("{CAMERA}{WHITE}{SPHERE}colour = 3\n"), "line 8", "`colour`", "`radius`"),
         (format!("{CAMERA}{WHITE}albedo = 0.5\nshiny = true\n"), "line 6", "`shiny`", "`albedo`"),
         (
@@ -121,6 +122,8 @@ fn unknown_types_and_integrators_list_the_choices() {
     assert_names(&msg, &["line 7", "`metal`", "`lambert`", "`dielectric`"]);
     let msg = parse_err(&format!("{CAMERA}[render]\nintegrator = \"bidir\"\n"));
     assert_names(&msg, &["line 7", "`bidir`", "`path`"]);
+    let msg = parse_err(&format!("{CAMERA}[render.photons]\nkernel = \"triangle\"\n"));
+    assert_names(&msg, &["line 7", "`triangle`", "`epanechnikov`"]);
 }
 
 #[test]
@@ -129,7 +132,7 @@ fn wrong_types_say_what_was_expected() {
         (format!("{CAMERA}[render]\nspp = \"many\"\n"), "line 7", "expected u32"),
         (format!("{CAMERA}fov = \"wide\"\n"), "line 6", "expected f32"),
         (format!("{CAMERA}{WHITE}{SPHERE}").replace("radius = 0.5", "radius = \"big\""), "line 8", "expected f32"),
-        (format!("{CAMERA}").replace("eye = [0.0, 1.0, 3.0]", "eye = [0.0, 1.0]"), "line 2", "3"),
+        (CAMERA.replace("eye = [0.0, 1.0, 3.0]", "eye = [0.0, 1.0]"), "line 2", "3"),
         (format!("{CAMERA}{WHITE}{SPHERE}emission = [1.0, 1.0, 1.0]\n"), "line 8", "expected"),
         (format!("{CAMERA}{WHITE}albedo = \"red\"\n"), "line 6", "a number or an [r, g, b] array"),
         (format!("{CAMERA}aperture = true\n"), "line 6", "expected f32"),
@@ -158,32 +161,45 @@ fn resolution_must_be_a_positive_pixel_count() {
     assert_names(&msg, &["camera.height", "found 100000"]);
 }
 
+/// A scene of the camera, the material `white` and one object of `fields` (its `type` and shape) in `white`.
+fn object(fields: &str) -> String {
+    format!("{CAMERA}{WHITE}[[objects]]\n{fields}material = \"white\"\n")
+}
+
+/// A scene of the camera and one point light of `fields`.
+fn point_light(fields: &str) -> String {
+    format!("{CAMERA}[[lights]]\ntype = \"point\"\n{fields}")
+}
+
 /// `nan`, `inf` and `-inf` are valid TOML floats: validation must catch each, wherever a number goes.
 #[test]
 fn nan_and_infinity_are_rejected_by_field() {
+    let sphere = "type = \"sphere\"\ncenter = [0, 1, 0]\nradius = 0.5\n";
+    let mesh = "type = \"mesh\"\nfile = \"a.obj\"\n";
+    let cases = [
+        (CAMERA.replace("eye = [0.0, 1.0, 3.0]", "eye = [X, 0, 0]"), "camera.eye"),
+        (CAMERA.replace("look_at = [0.0, 1.0, 0.0]", "look_at = [0, X, 0]"), "camera.look_at"),
+        (format!("{CAMERA}up = [0, 1, X]\n"), "camera.up"),
+        (format!("{CAMERA}fov = X\n"), "camera.fov"),
+        (format!("{CAMERA}aperture = X\n"), "camera.aperture"),
+        (format!("{CAMERA}focus_distance = X\n"), "camera.focus_distance"),
+        (format!("{CAMERA}[render]\nexposure = X\n"), "render.exposure"),
+        (format!("{CAMERA}{WHITE}albedo = X\n"), "materials.white"),
+        (object(&sphere.replace("radius = 0.5", "radius = X")), "objects[0].radius"),
+        (object(&sphere.replace("center = [0, 1, 0]", "center = [0, 0, X]")), "objects[0].center"),
+        (object(&format!("{sphere}emission = {{ radiance = [1, X, 1] }}\n")), "objects[0].emission.radiance"),
+        (object(&format!("{mesh}transform = {{ translate = [0, X, 0] }}\n")), "objects[0].transform.translate"),
+        (object(&format!("{mesh}transform = {{ rotate = [X, 0, 0] }}\n")), "objects[0].transform.rotate"),
+        (object(&format!("{mesh}transform = {{ scale = X }}\n")), "objects[0].transform.scale"),
+        (object("type = \"triangle\"\nvertices = [[0, 0, 0], [1, 0, 0], [0, X, 0]]\n"), "objects[0].vertices[2]"),
+        (object("type = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, X, 0]\n"), "objects[0].normal"),
+        (object("type = \"rect\"\ncorner = [0, 0, 0]\nu = [1, 0, 0]\nv = [0, 0, X]\n"), "objects[0].v"),
+        (point_light("position = [X, 1, 0]\npower = [1, 1, 1]\n"), "lights[0].position"),
+        (point_light("position = [0, 1, 0]\nintensity = [1, X, 1]\n"), "lights[0].intensity"),
+    ];
     for bad in ["nan", "inf", "-inf"] {
-        let sphere = |from: &str, to: &str| format!("{CAMERA}{WHITE}{SPHERE}").replace(from, &to.replace("X", bad));
-        let cases = [
-            (CAMERA.replace("eye = [0.0, 1.0, 3.0]", "eye = [X, 0, 0]").replace("X", bad), "camera.eye"),
-            (CAMERA.replace("look_at = [0.0, 1.0, 0.0]", "look_at = [0, X, 0]").replace("X", bad), "camera.look_at"),
-            (format!("{CAMERA}up = [0, 1, X]\n").replace("X", bad), "camera.up"),
-            (format!("{CAMERA}fov = X\n").replace("X", bad), "camera.fov"),
-            (format!("{CAMERA}aperture = X\n").replace("X", bad), "camera.aperture"),
-            (format!("{CAMERA}focus_distance = X\n").replace("X", bad), "camera.focus_distance"),
-            (format!("{CAMERA}[render]\nexposure = X\n").replace("X", bad), "render.exposure"),
-            (sphere("radius = 0.5", "radius = X"), "objects[0].radius"),
-            (sphere("center = [0.0, 1.0, 0.0]", "center = [0, 0, X]"), "objects[0].center"),
-            (sphere("material = \"white\"\n", "material = \"white\"\nemission = { radiance = [1, X, 1] }\n"), "objects[0].emission.radiance"),
-            (format!("{CAMERA}{WHITE}albedo = X\n").replace("X", bad), "materials.white"),
-            (format!("{CAMERA}[[lights]]\ntype = \"point\"\nposition = [X, 1, 0]\npower = [1, 1, 1]\n").replace("X", bad), "lights[0].position"),
-            (format!("{CAMERA}[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, X, 1]\n").replace("X", bad), "lights[0].intensity"),
-            (format!("{CAMERA}{WHITE}[[objects]]\ntype = \"mesh\"\nfile = \"a.obj\"\nmaterial = \"white\"\ntransform = {{ translate = [0, X, 0] }}\n").replace("X", bad), "objects[0].transform.translate"),
-            (format!("{CAMERA}{WHITE}[[objects]]\ntype = \"mesh\"\nfile = \"a.obj\"\nmaterial = \"white\"\ntransform = {{ scale = X }}\n").replace("X", bad), "objects[0].transform.scale"),
-            (format!("{CAMERA}{WHITE}[[objects]]\ntype = \"triangle\"\nvertices = [[0, 0, 0], [1, 0, 0], [0, X, 0]]\nmaterial = \"white\"\n").replace("X", bad), "objects[0].vertices[2]"),
-            (format!("{CAMERA}{WHITE}[[objects]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, X, 0]\nmaterial = \"white\"\n").replace("X", bad), "objects[0].normal"),
-        ];
-        for (text, field) in cases {
-            let msg = parse_err(&text);
+        for (text, field) in &cases {
+            let msg = parse_err(&text.replace('X', bad));
             assert_names(&msg, &[field]);
             assert!(msg.contains("expected") || msg.contains("must"), "no expectation in: {msg}");
         }
@@ -192,11 +208,12 @@ fn nan_and_infinity_are_rejected_by_field() {
 
 #[test]
 fn out_of_range_values_name_the_field() {
-    let sphere = format!("{CAMERA}{WHITE}{SPHERE}");
+    let sphere = "type = \"sphere\"\ncenter = [0, 1, 0]\nradius = 0.5\n";
+    let phong = "[materials.p]\ntype = \"phong\"\ndiffuse = 0.8\nspecular = 0.5\n";
     let cases = [
-        (sphere.replace("radius = 0.5", "radius = -1"), "objects[0].radius", "positive"),
-        (sphere.replace("radius = 0.5", "radius = 0"), "objects[0].radius", "positive"),
-        (format!("{sphere}emission = {{ radiance = [1, -1, 1] }}\n"), "objects[0].emission.radiance", "non-negative"),
+        (object(&sphere.replace("radius = 0.5", "radius = -1")), "objects[0].radius", "positive"),
+        (object(&sphere.replace("radius = 0.5", "radius = 0")), "objects[0].radius", "positive"),
+        (object(&format!("{sphere}emission = {{ radiance = [1, -1, 1] }}\n")), "objects[0].emission", "non-negative"),
         (format!("{CAMERA}fov = 180\n"), "camera.fov", "(0, 180)"),
         (format!("{CAMERA}aperture = -0.1\n"), "camera.aperture", "non-negative"),
         (format!("{CAMERA}up = [0, 0, 0]\n"), "camera.up", "non-zero"),
@@ -206,34 +223,16 @@ fn out_of_range_values_name_the_field() {
         (format!("{CAMERA}[render]\nmax_depth = 0\n"), "render.max_depth", "at least 1"),
         (format!("{CAMERA}{WHITE}albedo = 1.5\n"), "materials.white", "[0, 1]"),
         (format!("{CAMERA}[materials.glass]\ntype = \"dielectric\"\neta = 0\n"), "materials.glass", "eta"),
+        (format!("{CAMERA}{phong}"), "materials.p", "exceeds 1"),
+        (point_light("position = [0, 1, 0]\npower = [1, -1, 1]\n"), "lights[0].power", "non-negative"),
+        (object("type = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 0, 0]\n"), "objects[0].normal", "non-zero"),
         (
-            format!("{CAMERA}[materials.p]\ntype = \"phong\"\ndiffuse = 0.8\nspecular = 0.5\n"),
-            "materials.p",
-            "exceeds 1",
-        ),
-        (
-            format!("{CAMERA}[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\npower = [1, -1, 1]\n"),
-            "lights[0].power",
-            "non-negative",
-        ),
-        (
-            format!(
-                "{CAMERA}{WHITE}[[objects]]\ntype = \"plane\"\npoint = [0, 0, 0]\nnormal = [0, 0, 0]\nmaterial = \"white\"\n"
-            ),
-            "objects[0].normal",
-            "non-zero",
-        ),
-        (
-            format!(
-                "{CAMERA}{WHITE}[[objects]]\ntype = \"triangle\"\nvertices = [[0, 0, 0], [1, 1, 1], [2, 2, 2]]\nmaterial = \"white\"\n"
-            ),
+            object("type = \"triangle\"\nvertices = [[0, 0, 0], [1, 1, 1], [2, 2, 2]]\n"),
             "objects[0].vertices",
             "no area",
         ),
         (
-            format!(
-                "{CAMERA}{WHITE}[[objects]]\ntype = \"mesh\"\nfile = \"a.obj\"\nmaterial = \"white\"\ntransform = {{ scale = [1, 0, 1] }}\n"
-            ),
+            object("type = \"mesh\"\nfile = \"a.obj\"\ntransform = { scale = [1, 0, 1] }\n"),
             "objects[0].transform.scale",
             "non-zero",
         ),

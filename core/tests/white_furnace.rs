@@ -2,6 +2,8 @@
 //! direction is Le·(1 + ρ + ρ² + …) = Le/(1 − ρ). The path tracer (NEE, MIS and Russian roulette included)
 //! must find it within 2%.
 
+#![allow(clippy::unwrap_used)]
+
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
 use photon_core::scene::Scene;

@@ -1,0 +1,40 @@
+//! Every method on every shipped scene gives a finite, non-negative image.
+
+#![allow(clippy::unwrap_used)]
+
+use photon_core::prepare::Prepared;
+use photon_core::render::render_image;
+use photon_core::scene::{Integrator, Scene};
+use std::path::Path;
+
+#[test]
+fn no_nan_inf_or_negative_pixel() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
+    let mut scenes: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    scenes.sort();
+    assert!(scenes.len() >= 4);
+    for path in &scenes {
+        for integrator in Integrator::ALL {
+            let mut scene = Scene::load(path).unwrap();
+            scene.camera.width = 12;
+            scene.camera.height = 10;
+            let r = &mut scene.render;
+            r.integrator = integrator;
+            r.spp = 2;
+            r.photons.global = 5_000;
+            r.photons.caustic = 5_000;
+            r.photons.pass_photons = 5_000;
+            r.photons.passes = 2;
+            r.photons.final_gather_rays = 4;
+            let prep = Prepared::new(&scene, path).unwrap();
+            let img = render_image(&prep, &prep.settings, &|_| {});
+            let bad = img.pixels.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
+            assert_eq!(bad, 0, "{}: {integrator}: {bad} bad values", path.display());
+            assert!(img.pixels.iter().any(|&v| v > 0.0), "{}: {integrator}: black image", path.display());
+        }
+    }
+}
