@@ -10,7 +10,7 @@ use crate::Rgb;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::geometry::{Hit, NONE, Ray};
 use crate::math::{offset_ray_origin, power_heuristic};
-use crate::photon_map::{Estimator, PhotonMap};
+use crate::photon_map::{Estimator, Photon, PhotonMap};
 use crate::prepare::Prepared;
 use crate::rng::Sampler;
 use crate::scene::{Integrator, RenderSettings};
@@ -143,6 +143,47 @@ pub struct PhotonMaps {
     pub caustic: Option<PhotonMap>,
     /// The radiance estimate's settings, with the radius resolved to scene units.
     pub estimator: Estimator,
+    /// Irradiance precomputed at every fourth global photon (Christensen 1999), for `final-gather`: each
+    /// entry's `power` holds the irradiance E (W/m²) at its position.
+    pub irradiance: Option<PhotonMap>,
+}
+
+/// Precomputes irradiance at every `stride`-th photon of `global` (in parallel, in a fixed order).
+pub fn precompute_irradiance(global: &PhotonMap, est: &Estimator, stride: usize) -> Vec<Photon> {
+    use rayon::prelude::*;
+    let picked: Vec<&Photon> = global.photons().iter().step_by(stride.max(1)).collect();
+    picked
+        .par_iter()
+        .map(|ph| {
+            let n = ph.normal();
+            let e = SCRATCH
+                .with_borrow_mut(|scratch| global.estimate(est, ph.position(), n, ph.object, |_| Rgb::ONE, scratch));
+            Photon::new(ph.position(), n, n, e, ph.object)
+        })
+        .collect()
+}
+
+/// Radiance leaving a final-gather hit: the precomputed irradiance of the nearest entry facing the same way,
+/// reflected as by a diffuse surface, `L = f(wo, n)·E` (exact for Lambert and the mixture's diffuse part; an
+/// approximation for glossy surfaces, which final gathering blurs anyway). Falls back on the full estimate.
+fn gathered_radiance(maps: &PhotonMaps, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> Rgb {
+    let Some(irr) = &maps.irradiance else { return photon_radiance(&maps.global, &maps.estimator, hit, bsdf, wo) };
+    let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+    let radius = match maps.estimator.gather {
+        crate::photon_map::Gather::KNearest { max_radius, .. } => max_radius,
+        crate::photon_map::Gather::Radius { radius } => radius,
+    };
+    let found = SCRATCH.with_borrow_mut(|scratch| {
+        irr.k_nearest(hit.p, 8, radius * radius, scratch);
+        scratch
+            .iter()
+            .map(|&(i, _)| irr.photons()[i as usize])
+            .find(|e| e.normal().dot(n) > 0.9 && (!maps.estimator.same_object || e.object == hit.object))
+    });
+    match found {
+        Some(e) => bsdf.f(wo, n, TransportMode::Radiance) * e.phi(),
+        None => photon_radiance(&maps.global, &maps.estimator, hit, bsdf, wo),
+    }
 }
 
 thread_local! {
@@ -276,7 +317,7 @@ fn final_gather(
         let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
         let vp = visible_point(prep, settings.max_depth, spawn(hit, bs.wi), s, rays);
         if let Some((b, h2, bsdf2, wo2)) = vp.vertex {
-            sum += w * b * photon_radiance(&maps.global, &maps.estimator, &h2, &bsdf2, wo2);
+            sum += w * b * gathered_radiance(maps, &h2, &bsdf2, wo2);
         }
     }
     sum / n as f32

@@ -197,7 +197,14 @@ impl Prepared {
         } else {
             None
         };
-        Ok(PhotonMaps { global, caustic, estimator: self.estimator() })
+        let estimator = self.estimator();
+        let irradiance = if self.settings.integrator == Integrator::FinalGather {
+            let entries = crate::integrator::precompute_irradiance(&global, &estimator, 4);
+            Some(PhotonMap::build(entries).map_err(|e| e.to_string())?)
+        } else {
+            None
+        };
+        Ok(PhotonMaps { global, caustic, estimator, irradiance })
     }
 
     /// Loads and prepares a scene file.
