@@ -97,6 +97,15 @@ fn trace(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &
     l
 }
 
+/// Whether the segment from `hit` (leaving towards `wi`) to `target` is free. `target` has been moved off its
+/// own surface, so the segment ends just short of it at any scale; the last 1e-5 of its length is not tested
+/// either.
+pub fn unoccluded(prep: &Prepared, hit: &Hit, wi: Vec3A, target: Vec3A) -> bool {
+    let ray = spawn(hit, wi);
+    let dist = (target - ray.o).length();
+    !prep.geometry.occluded(&Ray::new(ray.o, (target - ray.o) / dist), dist * (1.0 - 1e-5))
+}
+
 /// Direct light at `hit` from one light chosen by power, sampled on the light. With `mis`, area-light samples
 /// are weighted by the power heuristic against BSDF sampling (the caller then adds BSDF-sampled emission with
 /// the complementary weight); without, light sampling carries the full estimate.
@@ -118,8 +127,7 @@ pub fn sample_one_light(
         return Rgb::ZERO;
     }
     *rays += 1;
-    // Stop short of the light's own surface; the margin is relative, so it holds at any scale.
-    if prep.geometry.occluded(&spawn(hit, ls.wi), ls.dist * (1.0 - 1e-4)) {
+    if !unoccluded(prep, hit, ls.wi, ls.p) {
         return Rgb::ZERO;
     }
     let cos = ls.wi.dot(hit.ns).abs();

@@ -61,6 +61,9 @@ pub struct LightSample {
     pub pdf: f32,
     /// Whether the light is a delta (point) light.
     pub delta: bool,
+    /// The sampled point, moved off an area light's surface towards the shaded point (so a shadow ray that ends
+    /// there does not hit the light itself, whatever the scale of the coordinates).
+    pub p: Vec3A,
 }
 
 impl Light {
@@ -93,7 +96,7 @@ impl Light {
                     return None;
                 }
                 let dist = dist2.sqrt();
-                Some(LightSample { wi: d / dist, dist, li: intensity / dist2, pdf: 1.0, delta: true })
+                Some(LightSample { wi: d / dist, dist, li: intensity / dist2, pdf: 1.0, delta: true, p: lp })
             }
             Light::Area { prim, le, two_sided, area } => {
                 let (lp, ln) = geometry.prims.get(prim as usize)?.shape.sample_area(u2);
@@ -109,7 +112,9 @@ impl Light {
                     return None;
                 }
                 let pdf = dist2 / (cos_l.abs() * area);
-                Some(LightSample { wi, dist, li: le, pdf, delta: false })
+                let towards = if cos_l > 0.0 { ln } else { -ln };
+                let p = crate::math::offset_ray_origin(lp, towards);
+                Some(LightSample { wi, dist, li: le, pdf, delta: false, p })
             }
         }
     }

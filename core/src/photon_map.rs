@@ -300,22 +300,64 @@ impl PhotonMap {
         let mut l = Rgb::ZERO;
         for &(index, d2) in &scratch[..inside] {
             let ph = &self.photons[index as usize];
-            if est.same_object && ph.object != object {
-                continue;
+            if let Some(wi) = accept(est, ph, p, n, object, max_plane_distance) {
+                l += f(wi) * ph.phi() * est.kernel.weight(d2 * inv_r2);
             }
-            if let Some(max_plane_distance) = max_plane_distance
-                && (ph.position() - p).dot(n).abs() > max_plane_distance
-            {
-                continue;
-            }
-            let wi = ph.wi();
-            if wi.dot(n) <= 0.0 || ph.normal().dot(n) <= 0.0 {
-                continue;
-            }
-            l += f(wi) * ph.phi() * est.kernel.weight(d2 * inv_r2);
         }
         l * inv_r2
     }
+
+    /// Progressive photon mapping's gather: the flux `Σ f(wi)·Φ` of the photons within `radius` of `p` that the
+    /// estimator's filters accept, and their count `M` (no kernel, no division by the area).
+    pub fn gather_flux(
+        &self,
+        est: &Estimator,
+        p: Vec3A,
+        n: Vec3A,
+        object: u32,
+        f: impl Fn(Vec3A) -> Rgb,
+        scratch: &mut Vec<(u32, f32)>,
+    ) -> (Rgb, usize) {
+        let radius = match est.gather {
+            Gather::Radius { radius } => radius,
+            Gather::KNearest { max_radius, .. } => max_radius,
+        };
+        self.within(p, radius * radius, scratch);
+        let max_plane_distance = est.disc.map(|d| d * radius);
+        let mut flux = Rgb::ZERO;
+        let mut m = 0;
+        for &(index, _) in scratch.iter() {
+            let ph = &self.photons[index as usize];
+            if let Some(wi) = accept(est, ph, p, n, object, max_plane_distance) {
+                flux += f(wi) * ph.phi();
+                m += 1;
+            }
+        }
+        (flux, m)
+    }
+}
+
+/// The photon's direction `wi` if the estimator's filters (module docs) accept it at `p` (normal `n`, object
+/// `object`), given the largest distance from the tangent plane.
+#[inline]
+fn accept(
+    est: &Estimator,
+    ph: &Photon,
+    p: Vec3A,
+    n: Vec3A,
+    object: u32,
+    max_plane_distance: Option<f32>,
+) -> Option<Vec3A> {
+    if est.same_object && ph.object != object {
+        return None;
+    }
+    if let Some(max_plane_distance) = max_plane_distance
+        && (ph.position() - p).dot(n).abs() > max_plane_distance
+    {
+        return None;
+    }
+    let wi = ph.wi();
+    (wi.dot(n) > 0.0 && ph.normal().dot(n) > 0.0).then_some(wi)
 }
 
 /// Density-estimation kernels over the gather disc, as functions of `t = d / r ∈ [0, 1]`, each normalised
@@ -693,46 +735,5 @@ mod tests {
             )
             .is_err()
         );
-    }
-}
-
-impl PhotonMap {
-    /// Progressive photon mapping's gather: the flux `Σ f(wi)·Φ` of the photons within `radius` of `p` that the
-    /// estimator's filters accept, and their count `M` (no kernel, no division by the area).
-    pub fn gather_flux(
-        &self,
-        est: &Estimator,
-        p: Vec3A,
-        n: Vec3A,
-        object: u32,
-        f: impl Fn(Vec3A) -> Rgb,
-        scratch: &mut Vec<(u32, f32)>,
-    ) -> (Rgb, usize) {
-        let radius = match est.gather {
-            Gather::Radius { radius } => radius,
-            Gather::KNearest { max_radius, .. } => max_radius,
-        };
-        self.within(p, radius * radius, scratch);
-        let max_plane_distance = est.disc.map(|d| d * radius);
-        let mut flux = Rgb::ZERO;
-        let mut m = 0;
-        for &(index, _) in scratch.iter() {
-            let ph = &self.photons[index as usize];
-            if est.same_object && ph.object != object {
-                continue;
-            }
-            if let Some(max_plane_distance) = max_plane_distance
-                && (ph.position() - p).dot(n).abs() > max_plane_distance
-            {
-                continue;
-            }
-            let wi = ph.wi();
-            if wi.dot(n) <= 0.0 || ph.normal().dot(n) <= 0.0 {
-                continue;
-            }
-            flux += f(wi) * ph.phi();
-            m += 1;
-        }
-        (flux, m)
     }
 }

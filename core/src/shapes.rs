@@ -165,10 +165,14 @@ impl Rect {
     fn local_hit(&self, p: Vec3A) -> LocalHit {
         let u = Vec3A::from(self.u);
         let v = Vec3A::from(self.v);
+        let n = self.normal();
         let d = p - Vec3A::from(self.corner);
+        // Project onto the plane: the point is then on the surface up to rounding, which keeps the offset of
+        // the next ray small.
+        let p = p - n * d.dot(n);
         let a = d.dot(u) / u.length_squared();
         let b = d.dot(v) / v.length_squared();
-        LocalHit { p, n: self.normal(), uv: Vec2::new(a, b) }
+        LocalHit { p, n, uv: Vec2::new(a, b) }
     }
 }
 
