@@ -56,6 +56,9 @@ struct RenderArgs {
     /// Exposure in stops for 8-bit outputs (overrides the scene's `render.exposure`).
     #[arg(long)]
     exposure: Option<f32>,
+    /// Override a scene setting, e.g. `--set render.photons.kernel=box` or `--set camera.fov=30`; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
@@ -97,7 +100,7 @@ fn render(args: RenderArgs) -> Result<()> {
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("starting the thread pool")?;
     }
     let t0 = Instant::now();
-    let mut scene = Scene::load(&args.scene)?;
+    let mut scene = Scene::load_with(&args.scene, &args.set)?;
     if let Some((w, h)) = args.size {
         scene.camera.width = w;
         scene.camera.height = h;

@@ -233,7 +233,7 @@ fn main() -> Result<(), Error> {
     println!("global map: {} paths, {stored} photons stored, built in {build_s:.2} s", o.photons);
 
     let mut tiles = Vec::new();
-    let mut tile_noise = 0.0;
+    let mut tile_noise = (0.0, 0.0);
     for gather in GATHERS {
         for kernel in KERNELS {
             let ph = &mut prep.settings.photons;
@@ -260,8 +260,8 @@ fn main() -> Result<(), Error> {
                 let mut settings = prep.settings.clone();
                 settings.seed = settings.seed.wrapping_add(1);
                 let again = render_image(&prep, &settings, &|_| {});
-                let (d, _) = errors(&again.pixels, &tile.pixels);
-                tile_noise = d * d / 2.0;
+                let (d, rel) = errors(&again.pixels, &tile.pixels);
+                tile_noise = (d * d / 2.0, rel / 2.0);
             }
             tiles.push(Tile { kernel, gather, file, render_s, rmse, rel_mse });
         }
@@ -292,7 +292,12 @@ fn main() -> Result<(), Error> {
         Some(n) => println!("\nreference: path tracer, {ref_spp} spp; its own RMSE ≈ {:.4} (the floor)", n.sqrt()),
         None => println!("\nreference: {ref_spp} spp; its own noise unknown"),
     }
-    println!("tiles' own pixel noise at {} spp: RMSE ≈ {:.4} (the first tile, two seeds)", o.spp, tile_noise.sqrt());
+    println!(
+        "tiles' own pixel noise at {} spp: RMSE ≈ {:.4}, relMSE ≈ {:.4} (the first tile, two seeds)",
+        o.spp,
+        tile_noise.0.sqrt(),
+        tile_noise.1
+    );
 
     let caption = format!(
         "Cornell box, photon-map (global map, direct visualisation), {} photon paths ({stored} stored), {} spp, \

@@ -692,6 +692,11 @@ mod tests {
         let expected = (phi * 0.5 + phi * f_slanted) / (std::f32::consts::PI * 0.25);
         assert!((l - expected).abs().max_element() < 1e-5 * expected.max_element(), "{l} vs {expected}");
 
+        // Progressive photon mapping's gather applies the same filters, without kernel or area.
+        let (flux, m) = map.gather_flux(&est, Vec3A::ZERO, n, 7, f, &mut scratch);
+        assert_eq!(m, 2);
+        assert!((flux - phi * (0.5 + f_slanted)).abs().max_element() < 1e-5 * flux.max_element(), "{flux}");
+
         // Without the object and disc filters, the other object's photon and the off-plane one count too.
         let loose = Estimator { disc: None, same_object: false, ..est };
         let l = map.estimate(&loose, Vec3A::ZERO, n, 7, f, &mut scratch);

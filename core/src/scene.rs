@@ -590,6 +590,42 @@ impl Scene {
         Ok(scene)
     }
 
+    /// Reads a scene file and applies overrides `KEY=VALUE` before validation, where `KEY` is a dotted path
+    /// into the file's tables (`render.spp`, `render.photons.kernel`, `camera.width`) and `VALUE` is a TOML
+    /// value (`64`, `"box"`, `true`, `[1.0, 0.0, 0.0]`); a bare word is taken as a string.
+    pub fn load_with(path: &Path, overrides: &[String]) -> Result<Scene, SceneError> {
+        if overrides.is_empty() {
+            return Self::load(path);
+        }
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.into(), source })?;
+        let parse_err = |message: String| SceneError::Parse { path: path.into(), message };
+        let mut table: toml::Table = toml::from_str(&text).map_err(|e| parse_err(e.to_string()))?;
+        for o in overrides {
+            let invalid = |message: String| SceneError::Invalid { path: path.into(), field: o.clone(), message };
+            let (key, value) =
+                o.split_once('=').ok_or_else(|| invalid("expected KEY=VALUE, e.g. render.spp=64".into()))?;
+            let value = value.trim();
+            let value = toml::from_str::<toml::Table>(&format!("v = {value}"))
+                .ok()
+                .and_then(|mut t| t.remove("v"))
+                .unwrap_or_else(|| toml::Value::String(value.to_string()));
+            let keys: Vec<&str> = key.trim().split('.').collect();
+            let (last, parents) = keys.split_last().ok_or_else(|| invalid("empty key".into()))?;
+            let mut t = &mut table;
+            for k in parents {
+                let entry = t.entry(k.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+                t = entry.as_table_mut().ok_or_else(|| invalid(format!("`{k}` is not a table")))?;
+            }
+            t.insert(last.to_string(), value);
+        }
+        let mut scene: Scene = toml::Value::Table(table)
+            .try_into()
+            .map_err(|e: toml::de::Error| parse_err(format!("after --set: {}", e.message())))?;
+        scene.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        scene.validate().map_err(|(field, message)| SceneError::Invalid { path: path.into(), field, message })?;
+        Ok(scene)
+    }
+
     /// Checks every value the types cannot: ranges, finiteness, names that must exist.
     fn validate(&self) -> Result<(), (String, String)> {
         let c = &self.camera;

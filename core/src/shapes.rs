@@ -214,75 +214,61 @@ impl Triangle {
     /// are never hit.
     #[inline]
     pub fn intersect_bary(&self, ray: &Ray, tmax: f32) -> Option<(f32, f32, f32)> {
-        // Translate to the ray origin, then rename the axes cyclically so that z is the dominant axis of `d` (so
-        // `d.z` is far from 0); a cyclic renaming keeps the triangle's orientation.
+        // Vertices relative to the ray origin, one vector per axis: lane i holds vertex i.
+        let [p0, p1, p2] = self.p;
+        let xs = Vec3A::new(p0.x, p1.x, p2.x) - ray.o.x;
+        let ys = Vec3A::new(p0.y, p1.y, p2.y) - ray.o.y;
+        let zs = Vec3A::new(p0.z, p1.z, p2.z) - ray.o.z;
+        // Rename the axes cyclically so that z is the dominant axis of `d` (`d.z` is then far from 0); a cyclic
+        // renaming keeps the triangle's orientation.
         let ad = ray.d.abs();
-        let kz = if ad.x > ad.y {
-            if ad.x > ad.z { 0 } else { 2 }
+        let (x, y, z, d) = if ad.x > ad.y && ad.x > ad.z {
+            (ys, zs, xs, ray.d.yzx())
         } else if ad.y > ad.z {
-            1
+            (zs, xs, ys, ray.d.zxy())
         } else {
-            2
+            (xs, ys, zs, ray.d)
         };
-        let permute = |v: Vec3A| match kz {
-            0 => v.yzx(),
-            1 => v.zxy(),
-            _ => v,
-        };
-        let d = permute(ray.d);
-        let p0 = permute(Vec3A::from(self.p[0]) - ray.o);
-        let p1 = permute(Vec3A::from(self.p[1]) - ray.o);
-        let p2 = permute(Vec3A::from(self.p[2]) - ray.o);
 
-        // Shear so the ray runs along +z: x' = x − (dx/dz)·z, y' = y − (dy/dz)·z. z is scaled by 1/dz only for a
-        // hit. A vertex shared by two triangles gets the same x', y' in both.
+        // Shear so the ray runs along +z: x' = x − (dx/dz)·z, y' = y − (dy/dz)·z; z is scaled by 1/dz only for
+        // a hit. A vertex shared by two triangles gets the same x', y' in both.
         let sz = 1.0 / d.z;
-        let (sx, sy) = (-d.x * sz, -d.y * sz);
-        let (x0, y0) = (p0.x + sx * p0.z, p0.y + sy * p0.z);
-        let (x1, y1) = (p1.x + sx * p1.z, p1.y + sy * p1.z);
-        let (x2, y2) = (p2.x + sx * p2.z, p2.y + sy * p2.z);
+        let x = x + (-d.x * sz) * z;
+        let y = y + (-d.y * sz) * z;
 
-        // Edge functions: twice the signed area of the 2D triangle of the ray (the origin) and one edge, `ei`
-        // for the edge opposite vertex i. Plain products, not fused: `x1·y2 − y1·x2` rounds to exactly the
-        // negation of `x2·y1 − y2·x1`, which is what makes shared edges agree.
-        let mut e0 = x1 * y2 - y1 * x2;
-        let mut e1 = x2 * y0 - y2 * x0;
-        let mut e2 = x0 * y1 - y0 * x1;
-        if e0 == 0.0 || e1 == 0.0 || e2 == 0.0 {
-            // Through an edge or vertex, or cancellation: decide in f64, where products of f32 are exact and
-            // the difference is rounded once, so the sign is exact (unless it flushes to 0 in f32, below 1e-45).
-            let edge = |ax: f32, ay: f32, bx: f32, by: f32| {
-                (f64::from(ax) * f64::from(by) - f64::from(ay) * f64::from(bx)) as f32
-            };
-            e0 = edge(x1, y1, x2, y2);
-            e1 = edge(x2, y2, x0, y0);
-            e2 = edge(x0, y0, x1, y1);
+        // Edge functions: twice the signed area of the 2D triangle of the ray (the origin) and one edge; lane i
+        // is for the edge opposite vertex i, e.g. `e.x = x1·y2 − y1·x2`. Plain products, not fused: then the
+        // same edge in the other direction rounds to exactly the negation, which is what makes shared edges agree.
+        let mut e = x.yzx() * y.zxy() - y.yzx() * x.zxy();
+        if e.cmpeq(Vec3A::ZERO).any() {
+            // Through an edge or vertex, or cancellation: decide in f64, where products of f32 are exact and the
+            // difference is rounded once, so the sign is exact (unless it flushes to 0 in f32, below 1e-45).
+            let edge =
+                |i: usize, j: usize| (f64::from(x[i]) * f64::from(y[j]) - f64::from(y[i]) * f64::from(x[j])) as f32;
+            e = Vec3A::new(edge(1, 2), edge(2, 0), edge(0, 1));
         }
         // The ray misses if the edge functions disagree in sign; zero (on an edge) agrees with either.
-        if (e0 < 0.0 || e1 < 0.0 || e2 < 0.0) && (e0 > 0.0 || e1 > 0.0 || e2 > 0.0) {
+        if e.cmplt(Vec3A::ZERO).any() && e.cmpgt(Vec3A::ZERO).any() {
             return None;
         }
         // The determinant is twice the projected area. A finite one also means every coordinate above is finite.
-        let det = e0 + e1 + e2;
+        let det = e.x + e.y + e.z;
         if det == 0.0 || !det.is_finite() {
             return None;
         }
 
-        // t = Σ ei·zi / det with z scaled by 1/dz.
-        let (z0, z1, z2) = (sz * p0.z, sz * p1.z, sz * p2.z);
+        // t = Σ ei·zi / det, with z scaled by 1/dz. Written so that NaN fails.
+        let z = sz * z;
         let inv_det = 1.0 / det;
-        let t = (e0 * z0 + e1 * z1 + e2 * z2) * inv_det;
-        // Written so that NaN fails.
+        let t = (e.x * z.x + e.y * z.y + e.z * z.z) * inv_det;
         if !(t > 0.0 && t < tmax) {
             return None;
         }
 
         // pbrt-v4 §6.8.7: bound the rounding error of t (γn bounds n rounded operations) and require t to exceed
         // it, so a surface at the ray's origin (the one the ray leaves) is not hit by rounding alone.
-        let max_x = x0.abs().max(x1.abs()).max(x2.abs());
-        let max_y = y0.abs().max(y1.abs()).max(y2.abs());
-        let max_z = z0.abs().max(z1.abs()).max(z2.abs());
-        let max_e = e0.abs().max(e1.abs()).max(e2.abs());
+        let (max_x, max_y) = (x.abs().max_element(), y.abs().max_element());
+        let (max_z, max_e) = (z.abs().max_element(), e.abs().max_element());
         let delta_x = gamma(5) * (max_x + max_z);
         let delta_y = gamma(5) * (max_y + max_z);
         let delta_z = gamma(3) * max_z;
@@ -294,11 +280,11 @@ impl Triangle {
 
         // A zero-area triangle can still get a tiny non-zero determinant from the rounding of the translation and
         // shear. Checked last, as few tests get this far.
-        let v0 = Vec3A::from(self.p[0]);
-        if (Vec3A::from(self.p[1]) - v0).cross(Vec3A::from(self.p[2]) - v0) == Vec3A::ZERO {
+        let v0 = Vec3A::from(p0);
+        if (Vec3A::from(p1) - v0).cross(Vec3A::from(p2) - v0) == Vec3A::ZERO {
             return None;
         }
-        Some((t, e1 * inv_det, e2 * inv_det))
+        Some((t, e.y * inv_det, e.z * inv_det))
     }
 
     /// Distance to the hit in `(0, tmax)`.

@@ -163,8 +163,8 @@ fn closest_and_any_hit_match_brute_force() {
     }
 }
 
-/// Every hit that testing every triangle finds lies on its triangle: the check above sees only the hits that
-/// the BVH tests, which are inside the BVH's boxes.
+/// Every hit of every triangle lies on its triangle, however far along the ray: the tests above check only hits
+/// closer than the best found so far.
 #[test]
 fn brute_force_hits_lie_on_their_triangles() {
     let tris = soup(4, 2000);
