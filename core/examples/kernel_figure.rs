@@ -13,10 +13,15 @@
 //! Every tile reads the same global photon map (same photon count and seed), built once and timed apart
 //! from rendering, so the tiles differ only in how the photons are gathered and weighted.
 //!
-//! Options (defaults in brackets): `--size N` [192] square image side, `--spp N` [4] samples per pixel of the
+//! Options (defaults in brackets): `--size N` [192] square image side, `--spp N` [32] samples per pixel of the
 //! tiles, `--photons N` [200000] global photon paths, `--radius R` [0.05] fixed gather radius, `--k N` [100]
-//! photons per k-nearest estimate, `--max-radius R` [0.15] k-nearest radius cap, `--ref-spp N` [2048]
-//! samples per pixel of the reference, `--reference FILE` an EXR reference to reuse instead of rendering one.
+//! photons per k-nearest estimate, `--max-radius R` [0.15] k-nearest radius cap, `--seed N` [the scene's]
+//! seed of the photons and the tiles' pixel samples, `--ref-spp N` [4096] samples per pixel of the reference,
+//! `--reference FILE` an EXR reference to reuse instead of rendering one.
+//!
+//! Tiles take 32 samples per pixel because at 4 the pixel noise (antialiasing at the light's edges, the
+//! Fresnel choice in the glass sphere) is larger than every kernel's error and hides their differences; the
+//! program measures that noise (the first tile again with another seed) and prints it.
 //!
 //! The reference is rendered as two halves with different seeds; `E[(a − b)²] / 4` over the halves `a`, `b` is
 //! the variance of their mean, the reference's own noise. Every measured MSE includes it (the reference noise
@@ -41,6 +46,8 @@ const KERNELS: [Kernel; 6] =
 /// Columns before the gap between the two blocks.
 const FIRST_BLOCK: usize = 4;
 const GATHERS: [GatherMode; 2] = [GatherMode::Radius, GatherMode::KNearest];
+/// Added to the scene's seed for the reference's two halves.
+const REFERENCE_SEED_OFFSET: u64 = 1_000_000;
 
 /// Command-line options.
 struct Options {
@@ -52,6 +59,7 @@ struct Options {
     radius: f32,
     k: u32,
     max_radius: f32,
+    seed: Option<u64>,
     ref_spp: u32,
     reference: Option<PathBuf>,
 }
@@ -59,18 +67,19 @@ struct Options {
 impl Options {
     fn parse() -> Result<Self, Error> {
         let usage = "usage: kernel_figure SCENE OUT_DIR [--size N] [--spp N] [--photons N] [--radius R] [--k N] \
-                     [--max-radius R] [--ref-spp N] [--reference FILE.exr]";
+                     [--max-radius R] [--seed N] [--ref-spp N] [--reference FILE.exr]";
         let mut positional = Vec::new();
         let mut o = Options {
             scene: PathBuf::new(),
             out: PathBuf::new(),
             size: 192,
-            spp: 4,
+            spp: 32,
             photons: 200_000,
             radius: 0.05,
             k: 100,
             max_radius: 0.15,
-            ref_spp: 2048,
+            seed: None,
+            ref_spp: 4096,
             reference: None,
         };
         let mut args = std::env::args().skip(1);
@@ -88,6 +97,7 @@ impl Options {
                 "--radius" => o.radius = value.parse().map_err(|e| bad(&e))?,
                 "--k" => o.k = value.parse().map_err(|e| bad(&e))?,
                 "--max-radius" => o.max_radius = value.parse().map_err(|e| bad(&e))?,
+                "--seed" => o.seed = Some(value.parse().map_err(|e| bad(&e))?),
                 "--ref-spp" => o.ref_spp = value.parse().map_err(|e| bad(&e))?,
                 "--reference" => o.reference = Some(PathBuf::from(value)),
                 _ => return Err(format!("unknown option {a}\n{usage}").into()),
@@ -181,6 +191,8 @@ fn reference(o: &Options, scene: &Scene) -> Result<(Image, Option<f64>, String),
     let mut settings = scene.render.clone();
     settings.integrator = Integrator::Path;
     settings.spp = o.ref_spp / 2;
+    // Streams apart from the tiles' (seed and seed + 1), so the reference's noise is independent of theirs.
+    settings.seed = settings.seed.wrapping_add(REFERENCE_SEED_OFFSET);
     let mut s = scene.clone();
     s.render = settings.clone();
     let prep = Prepared::new(&s, &o.scene)?;
@@ -223,6 +235,7 @@ fn main() -> Result<(), Error> {
     // Prepare without photons, then build the global map once and time it on its own.
     scene.render.integrator = Integrator::Path;
     scene.render.spp = o.spp;
+    scene.render.seed = o.seed.unwrap_or(scene.render.seed);
     scene.render.photons.global = o.photons;
     let mut prep = Prepared::new(&scene, &o.scene)?;
     prep.settings.integrator = Integrator::PhotonMap;
@@ -281,30 +294,35 @@ fn main() -> Result<(), Error> {
         let r = if t.gather == GatherMode::KNearest { format!("≤ {r}") } else { r.to_string() };
         writeln!(
             table,
-            "| {kn} | {gn} | {} | {k} | {r} | {build_s:.2} | {:.2} | {:.4} | {:.4} |",
+            "| {kn} | {gn} | {} | {k} | {r} | {build_s:.2} | {:.1} | {:.4} | {:.5} |",
             o.photons, t.render_s, t.rmse, t.rel_mse
         )?;
     }
     std::fs::write(o.out.join("kernels.csv"), csv)?;
     println!();
     print!("{table}");
-    match ref_noise {
-        Some(n) => println!("\nreference: path tracer, {ref_spp} spp; its own RMSE ≈ {:.4} (the floor)", n.sqrt()),
-        None => println!("\nreference: {ref_spp} spp; its own noise unknown"),
-    }
-    println!(
-        "tiles' own pixel noise at {} spp: RMSE ≈ {:.4}, relMSE ≈ {:.4} (the first tile, two seeds)",
+    let ref_note = match ref_noise {
+        Some(n) => format!("own RMSE ≈ {:.4}", n.sqrt()),
+        None => "own noise unknown".to_string(),
+    };
+    let noise_note = format!(
+        "Own noise: reference {ref_note}; tiles' pixel sampling at {} spp RMSE ≈ {:.4}, relMSE ≈ {:.5} (first tile, \
+         two seeds). Outlined: the lowest RMSE of its row.",
         o.spp,
         tile_noise.0.sqrt(),
         tile_noise.1
     );
-
-    let caption = format!(
-        "Cornell box, photon-map (global map, direct visualisation), {} photon paths ({stored} stored), {} spp, \
-         {}×{}; radius r = {}; k-nearest k = {}, r ≤ {}. Reference: path tracer, {ref_spp} spp.",
-        o.photons, o.spp, o.size, o.size, o.radius, o.k, o.max_radius
-    );
-    let svg = compose_svg(&o.out, o.size, &tiles, &caption)?;
+    println!("\nreference: path tracer, {ref_spp} spp. {noise_note}");
+    let title = [
+        format!(
+            "Cornell box, photon-map (direct visualisation of the global map), {} photon paths ({stored} stored), \
+             {} spp, {}×{}; radius: r = {}; k-nearest: k = {}, r ≤ {}. Reference: path tracer, {ref_spp} spp.",
+            o.photons, o.spp, o.size, o.size, o.radius, o.k, o.max_radius
+        ),
+        noise_note,
+    ];
+    let reference_label = [format!("reference (path tracer, {ref_spp} spp):"), ref_note];
+    let svg = compose_svg(&o.out, o.size, &tiles, &title, &reference_label)?;
     std::fs::write(o.out.join("kernels.svg"), svg)?;
     println!("wrote {}", o.out.join("kernels.svg").display());
     Ok(())
@@ -312,8 +330,14 @@ fn main() -> Result<(), Error> {
 
 /// The figure: the reference on the left, then one row per gather mode and one column per kernel, the PNG
 /// tiles embedded as data URIs, the lowest RMSE of each row outlined.
-fn compose_svg(dir: &Path, size: u32, tiles: &[Tile], title: &str) -> Result<String, Error> {
-    let (margin, gap, block_gap, caption_h, title_h) = (10u32, 8u32, 16u32, 30u32, 26u32);
+fn compose_svg(
+    dir: &Path,
+    size: u32,
+    tiles: &[Tile],
+    title: &[String],
+    reference_label: &[String; 2],
+) -> Result<String, Error> {
+    let (margin, gap, block_gap, caption_h, title_h) = (10u32, 8u32, 16u32, 30u32, 14 * title.len() as u32);
     let cell_w = size + gap;
     let cell_h = size + caption_h + gap;
     let col_x = |c: usize| {
@@ -329,7 +353,10 @@ fn compose_svg(dir: &Path, size: u32, tiles: &[Tile], title: &str) -> Result<Str
         r#"<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" viewBox="0 0 {width} {height}" font-family="Helvetica, Arial, sans-serif">"#
     )?;
     writeln!(s, r#"<rect width="100%" height="100%" fill="white"/>"#)?;
-    writeln!(s, r#"<text x="{margin}" y="{}" font-size="11">{}</text>"#, margin + 10, xml_escape(title))?;
+    for (i, line) in title.iter().enumerate() {
+        let y = margin + 10 + 14 * i as u32;
+        writeln!(s, r#"<text x="{margin}" y="{y}" font-size="11">{}</text>"#, xml_escape(line))?;
+    }
     let image = |s: &mut String, file: &str, x: u32, y: u32| -> Result<(), Error> {
         let data = base64(&std::fs::read(dir.join(file))?);
         writeln!(s, r#"<image x="{x}" y="{y}" width="{size}" height="{size}" href="data:image/png;base64,{data}"/>"#)?;
@@ -344,7 +371,7 @@ fn compose_svg(dir: &Path, size: u32, tiles: &[Tile], title: &str) -> Result<Str
     // The reference, centred vertically between the two rows.
     let ref_y = top + (GATHERS.len() as u32 * cell_h - cell_h) / 2;
     image(&mut s, "reference.png", margin, ref_y)?;
-    label(&mut s, margin, ref_y + size, "Reference (path tracer)", "RMSE 0 by definition")?;
+    label(&mut s, margin, ref_y + size, &reference_label[0], &reference_label[1])?;
     for (row, gather) in GATHERS.iter().enumerate() {
         let y = top + row as u32 * cell_h;
         let in_row: Vec<&Tile> = tiles.iter().filter(|t| t.gather == *gather).collect();
@@ -363,7 +390,7 @@ fn compose_svg(dir: &Path, size: u32, tiles: &[Tile], title: &str) -> Result<Str
                 )?;
             }
             let l1 = format!("{} {}", kernel_name(t.kernel), gather_name(t.gather));
-            let l2 = format!("RMSE {:.4}, relMSE {:.4}, {:.2} s", t.rmse, t.rel_mse, t.render_s);
+            let l2 = format!("RMSE {:.4}, relMSE {:.5}, {:.1} s", t.rmse, t.rel_mse, t.render_s);
             label(&mut s, x, y + size, &format!("{l1}:"), &l2)?;
         }
     }

@@ -74,8 +74,11 @@ pub fn parse_obj(text: &str, file: &Path, world_from_object: &Affine3A) -> Resul
         }
         let world: Vec<Vec3> = positions.iter().map(|&p| world_from_object.transform_point3(p)).collect();
         let tri_count = m.indices.len() / 3;
+        // A mirroring transform (negative determinant) reverses the winding; swapping two corners keeps the
+        // outside outside (it decides the normals computed below, and which way emission faces).
+        let corners: [usize; 3] = if world_from_object.matrix3.determinant() < 0.0 { [0, 2, 1] } else { [0, 1, 2] };
         for f in 0..tri_count {
-            let ix = [m.indices[3 * f], m.indices[3 * f + 1], m.indices[3 * f + 2]];
+            let ix = corners.map(|k| m.indices[3 * f + k]);
             let mut tri = [Vec3::ZERO; 3];
             for k in 0..3 {
                 tri[k] = *world
@@ -92,7 +95,7 @@ pub fn parse_obj(text: &str, file: &Path, world_from_object: &Affine3A) -> Resul
                 sh.normals.push(wn.to_array());
             }
             for f in 0..tri_count {
-                sh.normal_indices.push([0, 1, 2].map(|k| normal_base + m.normal_indices[3 * f + k]));
+                sh.normal_indices.push(corners.map(|k| normal_base + m.normal_indices[3 * f + k]));
             }
         } else {
             let mut acc = vec![Vec3A::ZERO; world.len()];
@@ -106,14 +109,14 @@ pub fn parse_obj(text: &str, file: &Path, world_from_object: &Affine3A) -> Resul
             }
             sh.normals.extend(acc.iter().map(|n| n.normalize_or_zero().to_array()));
             for f in 0..tri_count {
-                sh.normal_indices.push([0, 1, 2].map(|k| normal_base + m.indices[3 * f + k]));
+                sh.normal_indices.push(corners.map(|k| normal_base + m.indices[3 * f + k]));
             }
         }
         if !m.texcoords.is_empty() && m.texcoord_indices.len() == m.indices.len() {
             let uv_base = sh.uvs.len() as u32;
             sh.uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0], t[1]]));
             for f in 0..tri_count {
-                sh.uv_indices.push([0, 1, 2].map(|k| uv_base + m.texcoord_indices[3 * f + k]));
+                sh.uv_indices.push(corners.map(|k| uv_base + m.texcoord_indices[3 * f + k]));
             }
         }
     }
@@ -211,6 +214,19 @@ mod tests {
         assert!((t[1] - Vec3::new(2.0, 1.0, 0.0)).length() < 1e-5);
         // +z rotated by −90° about x becomes +y.
         assert!((Vec3::from(m.shading.normals[0]) - Vec3::Y).length() < 1e-5);
+    }
+
+    #[test]
+    fn mirroring_keeps_the_outside_outside() {
+        // The quad faces +z; mirrored in z it must face −z, with the computed normals agreeing.
+        let xf = Affine3A::from_scale(Vec3::new(1.0, 1.0, -1.0));
+        let m = parse_obj(QUAD, Path::new("quad.obj"), &xf).unwrap();
+        let t = m.triangles[0];
+        let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
+        assert!((n - Vec3::NEG_Z).length() < 1e-6, "{n}");
+        for sn in &m.shading.normals {
+            assert!((Vec3::from(*sn) - Vec3::NEG_Z).length() < 1e-6);
+        }
     }
 
     #[test]

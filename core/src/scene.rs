@@ -160,7 +160,7 @@ impl std::str::FromStr for Integrator {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum GatherMode {
-    /// The `k` nearest photons, within `max_radius`.
+    /// The `k` nearest photons, within `radius`.
     #[default]
     KNearest,
     /// Every photon within `radius`.
@@ -192,7 +192,7 @@ fn default_alpha() -> f32 {
     2.0 / 3.0
 }
 
-/// Photon-mapping settings: the `[photons]` table. Only the photon methods read it.
+/// Photon-mapping settings: the `[render.photons]` table. Only the photon methods read it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct PhotonSettings {
@@ -661,6 +661,9 @@ impl Scene {
         }
         let ph = &r.photons;
         let pf = |s: &str| format!("render.photons.{s}");
+        if ph.global == 0 {
+            return Err((pf("global"), "expected at least 1 photon path".into()));
+        }
         if ph.k < 2 {
             return Err((pf("k"), format!("expected at least 2 photons, found {}", ph.k)));
         }
