@@ -5,6 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
 use photon_core::image_io::{Format, Image};
+use photon_core::metrics::{self, Metrics, Region};
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Integrator, Scene};
 use std::path::PathBuf;
@@ -22,6 +23,8 @@ struct Cli {
 enum Command {
     /// Render a scene file to an image.
     Render(RenderArgs),
+    /// Measure an image's error against a reference (RMSE, relative MSE, relative error, bias).
+    Compare(CompareArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -64,6 +67,31 @@ struct RenderArgs {
     quiet: bool,
 }
 
+#[derive(clap::Args, Debug)]
+struct CompareArgs {
+    /// The image to measure: EXR for linear values (8-bit formats are decoded from sRGB).
+    image: PathBuf,
+    /// The reference image, the same size.
+    reference: PathBuf,
+    /// Measure the bias over the pixels `X0,Y0,X1,Y1`, X1 and Y1 exclusive (default: the whole image).
+    #[arg(long, value_parser = parse_region, value_name = "X0,Y0,X1,Y1")]
+    region: Option<Region>,
+    /// Write a false-colour map of per-pixel relative error (0 dark, 1 or more bright), e.g. `err.png`.
+    #[arg(long, value_name = "FILE")]
+    error_image: Option<PathBuf>,
+}
+
+fn parse_region(s: &str) -> Result<Region, String> {
+    let v: Vec<u32> = s.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| {
+        format!("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{s}`")
+    })?;
+    match v[..] {
+        [x0, y0, x1, y1] if x0 < x1 && y0 < y1 => Ok(Region { x0, y0, x1, y1 }),
+        [_, _, _, _] => Err(format!("expected X0 < X1 and Y0 < Y1 (X1 and Y1 exclusive), found `{s}`")),
+        _ => Err(format!("expected four numbers X0,Y0,X1,Y1, found `{s}`")),
+    }
+}
+
 fn parse_size(s: &str) -> Result<(u32, u32), String> {
     let (w, h) = s.split_once('x').ok_or_else(|| format!("expected WIDTHxHEIGHT, found `{s}`"))?;
     let p = |v: &str| v.parse::<u32>().ok().filter(|&n| (1..=65_536).contains(&n));
@@ -84,6 +112,7 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::Compare(args) => compare(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -161,4 +190,49 @@ fn render(args: RenderArgs) -> Result<()> {
         strip.rays as f64 / render_s / 1e6
     );
     Ok(())
+}
+
+fn compare(args: CompareArgs) -> Result<()> {
+    if let Some(path) = &args.error_image {
+        Format::from_path(path)?;
+    }
+    let image = Image::read(&args.image)?;
+    let reference = Image::read(&args.reference)?;
+    let what = || format!("comparing {} with the reference {}", args.image.display(), args.reference.display());
+    let m = metrics::compare(&image, &reference, args.region).with_context(what)?;
+    println!("{} against {} ({}x{})", args.image.display(), args.reference.display(), image.width, image.height);
+    print_metrics(&m);
+    if let Some(path) = &args.error_image {
+        metrics::error_image(&image, &reference).with_context(what)?.write(path, 0.0)?;
+        println!("  {:<26}{}", "error image", path.display());
+    }
+    println!("{}", m.key_values());
+    Ok(())
+}
+
+/// The readable block of `compare`: one metric a line, labels in a column.
+fn print_metrics(m: &Metrics) {
+    let rel = m.rel_bias.map_or_else(|| "undefined: black reference".to_owned(), |b| format!("{:+.3} %", 100.0 * b));
+    let rows = [
+        ("RMSE".to_owned(), sig(m.rmse)),
+        (format!("relative MSE (eps {})", metrics::EPSILON), sig(m.rel_mse)),
+        ("mean abs. relative error".to_owned(), sig(m.mare)),
+        (format!("bias over {}", m.region), format!("{} ({rel})", sig(m.bias))),
+    ];
+    for (label, value) in rows {
+        println!("  {label:<26}{value}");
+    }
+}
+
+/// Four significant digits, in scientific notation outside [0.001, 10 000).
+fn sig(x: f64) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if (1e-3..1e4).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
 }

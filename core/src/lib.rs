@@ -27,6 +27,7 @@ pub mod light;
 pub mod material;
 pub mod math;
 pub mod mesh;
+pub mod metrics;
 pub mod photon;
 pub mod photon_map;
 pub mod prepare;

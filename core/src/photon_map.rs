@@ -151,7 +151,6 @@ thread_local! {
 }
 
 /// kiddo's recommended immutable layout: `u32` items (photon indices), buckets of 32, Eytzinger stems.
-
 /// The immutable tree copes with many photons sharing a coordinate (axis-aligned walls).
 type Tree = ImmutableKdTree<f32, 3>;
 type Metric = SquaredEuclidean<f32>;

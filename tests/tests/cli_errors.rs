@@ -1,54 +1,14 @@
 //! The command line on malformed scenes: exit status 1 (not a panic's 101), and a message on stderr that names
-//! the file and the field or line.
-//!
-//! `photon-coordinator` is another package's binary, so Cargo does not build it for these tests and
-//! `CARGO_BIN_EXE_…` is not set. The tests run `cargo build -p photon-coordinator` once (a no-op when the binary
-//! is fresh; it builds it when missing or stale) in the profile and target folder of this test executable, then
-//! run `<target>/<profile>/photon-coordinator`, found from `std::env::current_exe()`
-//! (`<target>/<profile>/deps/cli_errors-…`).
+//! the file and the field or line. The binary is built and found by [`photon_tests::coordinator`].
 #![allow(clippy::unwrap_used)]
 
+use photon_tests::coordinator;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
-use std::sync::OnceLock;
-
-/// The coordinator binary, built on first use.
-fn coordinator() -> &'static Path {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        let exe = std::env::current_exe().unwrap();
-        // <target>/<profile>/deps/cli_errors-HASH
-        let profile_dir = exe.parent().and_then(Path::parent).unwrap().to_path_buf();
-        let target_dir = profile_dir.parent().unwrap();
-        let profile = profile_dir.file_name().unwrap().to_string_lossy().into_owned();
-        let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-        let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
-        let mut build = Command::new(cargo);
-        build.args(["build", "--quiet", "-p", "photon-coordinator", "--manifest-path"]).arg(&manifest);
-        build.arg("--target-dir").arg(target_dir);
-        match profile.as_str() {
-            "debug" => {}
-            "release" => {
-                build.arg("--release");
-            }
-            other => {
-                build.args(["--profile", other]);
-            }
-        }
-        let status = build.status().unwrap();
-        assert!(status.success(), "`cargo build -p photon-coordinator` failed: {status}");
-        let bin = profile_dir.join(format!("photon-coordinator{}", std::env::consts::EXE_SUFFIX));
-        assert!(bin.is_file(), "{} missing after the build", bin.display());
-        bin
-    })
-}
 
 /// A fresh folder for one test.
 fn temp_dir(test: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("photon-cli-errors-{}-{test}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+    photon_tests::temp_dir("cli-errors", test)
 }
 
 /// Runs `photon-coordinator render SCENE -o DIR/out.png` in `dir`, with the scene named relative to `dir`.
