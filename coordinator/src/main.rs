@@ -82,9 +82,10 @@ struct CompareArgs {
 }
 
 fn parse_region(s: &str) -> Result<Region, String> {
-    let v: Vec<u32> = s.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| {
-        format!("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{s}`")
-    })?;
+    let v: Vec<u32> =
+        s.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| {
+            format!("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{s}`")
+        })?;
     match v[..] {
         [x0, y0, x1, y1] if x0 < x1 && y0 < y1 => Ok(Region { x0, y0, x1, y1 }),
         [_, _, _, _] => Err(format!("expected X0 < X1 and Y0 < Y1 (X1 and Y1 exclusive), found `{s}`")),

@@ -1,4 +1,5 @@
-//! Every method on every shipped scene gives a finite, non-negative image.
+//! Every method on every shipped scene, the stress scenes of `scenes/stress/` included, gives a finite,
+//! non-negative image.
 
 #![allow(clippy::unwrap_used)]
 
@@ -25,16 +26,20 @@ fn no_nan_inf_or_negative_pixel() {
             let r = &mut scene.render;
             r.integrator = integrator;
             r.spp = 2;
-            r.photons.global = 5_000;
-            r.photons.caustic = 5_000;
-            r.photons.pass_photons = 5_000;
+            // Keep the stress scenes' own tiny photon counts; cap the others for speed.
+            r.photons.global = r.photons.global.min(5_000);
+            r.photons.caustic = r.photons.caustic.min(5_000);
+            r.photons.pass_photons = r.photons.pass_photons.min(5_000);
             r.photons.passes = 2;
             r.photons.final_gather_rays = 4;
             let prep = Prepared::new(&scene, path).unwrap();
             let img = render_image(&prep, &prep.settings, &|_| {});
             let bad = img.pixels.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
             assert_eq!(bad, 0, "{}: {integrator}: {bad} bad values", path.display());
-            assert!(img.pixels.iter().any(|&v| v > 0.0), "{}: {integrator}: black image", path.display());
+            // Direct light alone cannot see a light that shines only through glass.
+            if !(integrator == Integrator::Direct && path.ends_with("light-in-glass.toml")) {
+                assert!(img.pixels.iter().any(|&v| v > 0.0), "{}: {integrator}: black image", path.display());
+            }
         }
     }
 }
