@@ -4,6 +4,7 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
+use photon_coordinator::sweep;
 use photon_core::image_io::{Format, Image};
 use photon_core::metrics::{self, Metrics, Region};
 use photon_core::prepare::Prepared;
@@ -25,6 +26,13 @@ enum Command {
     Render(RenderArgs),
     /// Measure an image's error against a reference (RMSE, relative MSE, relative error, bias).
     Compare(CompareArgs),
+    /// Render a reference EXR: the path tracer at many samples, or progressive photon mapping at many passes
+    /// when the scene has point-light caustics. Renders in this process on all cores (no remote workers yet).
+    Reference(ReferenceArgs),
+    /// Render with several methods at growing budgets, measure each image against a reference, and write
+    /// sweep.csv, sweep.svg and sweep.png with equal-time and equal-error tables. Renders run one after another
+    /// in this process on all cores, like `render` (there are no remote workers yet).
+    Sweep(SweepArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -81,6 +89,56 @@ struct CompareArgs {
     error_image: Option<PathBuf>,
 }
 
+#[derive(clap::Args, Debug)]
+struct ReferenceArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Output image; must be .exr (linear values, for `compare` and `sweep`).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Samples per pixel when the path tracer renders the reference.
+    #[arg(long, default_value_t = 4096)]
+    spp: u32,
+    /// Passes when progressive photon mapping renders the reference.
+    #[arg(long, default_value_t = 512)]
+    passes: u32,
+    /// Image width and height in pixels, e.g. `96x96` (overrides the scene's camera).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Seed of the reference; keep it different from the seed of the images it measures (the scene's
+    /// `render.seed`, 1 by default), or their noise is correlated and the error looks smaller than it is.
+    #[arg(long, default_value_t = 0x5EED)]
+    seed: u64,
+    /// Override a scene setting, e.g. `--set render.photons.pass_photons=50000`; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
+#[derive(clap::Args, Debug)]
+struct SweepArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// The reference image (EXR), e.g. from `photon-coordinator reference`.
+    #[arg(long)]
+    reference: PathBuf,
+    /// Methods, comma-separated: `path`, `direct`, `photon-map`, `final-gather`, `progressive`.
+    #[arg(long, value_delimiter = ',', default_value = "path,photon-map,final-gather,progressive")]
+    methods: Vec<Integrator>,
+    /// Budget multipliers b, comma-separated: path/direct render 4·b spp; photon-map traces 25 000·b global
+    /// photons (k fixed, 2 spp); final-gather 25 000·b global and caustic photons (2 spp); progressive 4·b passes.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8")]
+    budget: Vec<u32>,
+    /// Image width and height, e.g. `96x96`; must match the reference (default: the reference's size).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Folder for sweep.csv, sweep.svg and sweep.png (created when missing).
+    #[arg(long, default_value = ".")]
+    out: PathBuf,
+    /// Override a scene setting for every render, e.g. `--set render.photons.pass_photons=20000`; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
+}
+
 fn parse_region(s: &str) -> Result<Region, String> {
     let v: Vec<u32> =
         s.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| {
@@ -114,6 +172,8 @@ fn main() {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::Compare(args) => compare(args),
+        Command::Reference(args) => reference(args),
+        Command::Sweep(args) => sweep(args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -208,6 +268,121 @@ fn compare(args: CompareArgs) -> Result<()> {
         println!("  {:<26}{}", "error image", path.display());
     }
     println!("{}", m.key_values());
+    Ok(())
+}
+
+fn reference(args: ReferenceArgs) -> Result<()> {
+    if Format::from_path(&args.output)? != Format::Exr {
+        bail!("the reference must be an .exr image (linear values), not {}", args.output.display());
+    }
+    if args.spp == 0 || args.passes == 0 {
+        bail!("--spp and --passes must be at least 1");
+    }
+    let mut scene = Scene::load_with(&args.scene, &args.set)?;
+    if let Some((w, h)) = args.size {
+        scene.camera.width = w;
+        scene.camera.height = h;
+    }
+    if args.seed == scene.render.seed {
+        eprintln!("warning: the reference seed equals the scene's render.seed: its noise will correlate with renders");
+    }
+    // Decide on the scene as it stands (lights and materials do not depend on the method).
+    let choice = sweep::choose_reference(&Prepared::new(&scene, &args.scene)?);
+    let s = &mut scene.render;
+    s.integrator = choice.integrator;
+    s.seed = args.seed;
+    let budget = match choice.integrator {
+        Integrator::Progressive => {
+            s.photons.passes = args.passes;
+            format!("{} passes of {} photon paths", args.passes, s.photons.pass_photons)
+        }
+        _ => {
+            s.spp = args.spp;
+            format!("{} spp", args.spp)
+        }
+    };
+    println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
+    let t = sweep::render_timed(&scene, &args.scene)?;
+    t.image.write(&args.output, 0.0)?;
+    println!(
+        "{}: {}x{}, {}, {:.2} s render (+{:.2} s prepare)",
+        args.output.display(),
+        t.image.width,
+        t.image.height,
+        choice.integrator,
+        t.render_s,
+        t.prepare_s
+    );
+    Ok(())
+}
+
+fn sweep(args: SweepArgs) -> Result<()> {
+    if args.methods.is_empty() || args.budget.is_empty() {
+        bail!("--methods and --budget need at least one value each");
+    }
+    if args.budget.contains(&0) {
+        bail!("budget multipliers must be at least 1");
+    }
+    let reference = Image::read(&args.reference).with_context(|| format!("reading {}", args.reference.display()))?;
+    let (width, height) = args.size.unwrap_or((reference.width, reference.height));
+    if (width, height) != (reference.width, reference.height) {
+        bail!(
+            "--size {width}x{height} differs from the reference {} ({}x{})",
+            args.reference.display(),
+            reference.width,
+            reference.height
+        );
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let mut base = Scene::load_with(&args.scene, &args.set)?;
+    base.camera.width = width;
+    base.camera.height = height;
+    println!(
+        "sweep of {} at {width}x{height} against {}: in-process on {} threads",
+        args.scene.display(),
+        args.reference.display(),
+        rayon::current_num_threads()
+    );
+    let mut rows = Vec::new();
+    for &method in &args.methods {
+        for &b in &args.budget {
+            let mut scene = base.clone();
+            let setting = sweep::apply_budget(&mut scene.render, method, b)?;
+            let t = sweep::render_timed(&scene, &args.scene)
+                .with_context(|| format!("rendering {method} at budget {b}"))?;
+            let m = metrics::compare(&t.image, &reference, None)
+                .with_context(|| format!("measuring {method} at budget {b} against {}", args.reference.display()))?;
+            let row = sweep::Row {
+                method,
+                budget: b,
+                setting,
+                seconds: t.prepare_s + t.render_s,
+                rmse: m.rmse,
+                rel_mse: m.rel_mse,
+            };
+            println!(
+                "  {:<13} b={:<4} {:<16} {:>8.3} s  rmse {:<10} relMSE {}",
+                method.name(),
+                b,
+                format!("{}={}", row.setting.parameter, row.setting.value),
+                row.seconds,
+                sig(row.rmse),
+                sig(row.rel_mse)
+            );
+            rows.push(row);
+        }
+    }
+    let csv_path = args.out.join("sweep.csv");
+    std::fs::write(&csv_path, sweep::csv(&rows)).with_context(|| format!("writing {}", csv_path.display()))?;
+    let curves = sweep::curves(&rows);
+    let name = args.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let title = format!("{name} {width}x{height}: relative MSE against wall time");
+    let (svg, png) = (args.out.join("sweep.svg"), args.out.join("sweep.png"));
+    sweep::draw_charts(&curves, &title, &svg, &png)?;
+    println!("\nequal time (relMSE, log-log interpolation):\n{}", sweep::equal_time_table(&curves));
+    println!("equal error (seconds, log-log interpolation; — out of the measured range):");
+    println!("{}", sweep::equal_error_table(&curves));
+    println!("wrote {}, {} and {} (the PNG has no text)", csv_path.display(), svg.display(), png.display());
     Ok(())
 }
 

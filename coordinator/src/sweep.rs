@@ -1,0 +1,502 @@
+//! Speed against accuracy: render a scene with each method at growing budgets, measure every image against a
+//! reference, and summarise the curves of relative MSE against wall time.
+//!
+//! The pieces here are the ones worth testing without a renderer: how a budget multiplier becomes a method's
+//! setting ([`apply_budget`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
+//! for the equal-time and equal-error tables ([`error_at`], [`time_to`]), the CSV, and the chart
+//! ([`draw_charts`]). Renders run in this process on all cores ([`render_timed`]), like `render`.
+
+use anyhow::{Context, Result};
+use photon_core::image_io::Image;
+use photon_core::light::Light;
+use photon_core::material::Material;
+use photon_core::prepare::Prepared;
+use photon_core::scene::{Integrator, RenderSettings, Scene};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// Samples per pixel of `path` and `direct` at budget 1.
+pub const BASE_SPP: u32 = 4;
+/// Global photon paths of `photon-map` and global and caustic photon paths of `final-gather` at budget 1.
+pub const BASE_PHOTONS: u32 = 25_000;
+/// Passes of `progressive` at budget 1.
+pub const BASE_PASSES: u32 = 4;
+/// Samples per pixel of the photon-map methods, fixed across budgets: they only anti-alias the first hit, so the
+/// budget grows the photon count alone.
+pub const PHOTON_METHOD_SPP: u32 = 2;
+
+/// The method a reference is rendered with, and why.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ReferenceChoice {
+    /// `path` or `progressive`.
+    pub integrator: Integrator,
+    /// One sentence for the user.
+    pub reason: String,
+}
+
+/// The path tracer, unless the scene has a point light and a mirror or glass material: light from a point
+/// through a delta surface onto a diffuse one (a point-light caustic) is a path that a camera path can only
+/// complete by hitting the point, which has probability zero, so the path tracer converges to an image without
+/// the caustic. Progressive photon mapping is consistent for those paths.
+pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
+    let point = prep.lights.lights.iter().any(|l| matches!(l, Light::Point { .. }));
+    let specular = prep.materials.iter().any(Material::has_specular);
+    if point && specular {
+        ReferenceChoice {
+            integrator: Integrator::Progressive,
+            reason: "the scene has a point light and a mirror or glass material: the caustics it casts are paths \
+                     a path tracer can never complete, so progressive photon mapping (consistent) renders the \
+                     reference"
+                .into(),
+        }
+    } else {
+        let why = if point { "no mirror or glass material" } else { "no point light" };
+        ReferenceChoice {
+            integrator: Integrator::Path,
+            reason: format!(
+                "{why}: every light path can be found from the camera, so the unbiased path tracer renders the reference"
+            ),
+        }
+    }
+}
+
+/// What a budget multiplier set: the setting's name and value, for the CSV.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Budget {
+    /// The setting that grows with the budget: `spp`, `photons` or `passes`.
+    pub parameter: &'static str,
+    /// Its value.
+    pub value: u64,
+}
+
+/// Sets `settings` to render with `method` at budget multiplier `b`: `path`/`direct` at `BASE_SPP·b` spp,
+/// `photon-map` with `BASE_PHOTONS·b` global photons (k unchanged), `final-gather` with `BASE_PHOTONS·b` global
+/// and caustic photons, `progressive` with `BASE_PASSES·b` passes. The photon methods render
+/// [`PHOTON_METHOD_SPP`] samples per pixel at every budget. Fails when a value overflows `u32`.
+pub fn apply_budget(settings: &mut RenderSettings, method: Integrator, b: u32) -> Result<Budget> {
+    let times = |base: u32| base.checked_mul(b).with_context(|| format!("budget {b} × {base} overflows for {method}"));
+    settings.integrator = method;
+    let budget = match method {
+        Integrator::Path | Integrator::Direct => {
+            settings.spp = times(BASE_SPP)?;
+            Budget { parameter: "spp", value: u64::from(settings.spp) }
+        }
+        Integrator::PhotonMap => {
+            settings.spp = PHOTON_METHOD_SPP;
+            settings.photons.global = times(BASE_PHOTONS)?;
+            Budget { parameter: "photons", value: u64::from(settings.photons.global) }
+        }
+        Integrator::FinalGather => {
+            settings.spp = PHOTON_METHOD_SPP;
+            settings.photons.global = times(BASE_PHOTONS)?;
+            settings.photons.caustic = settings.photons.global;
+            Budget { parameter: "photons", value: u64::from(settings.photons.global) }
+        }
+        Integrator::Progressive => {
+            settings.photons.passes = times(BASE_PASSES)?;
+            Budget { parameter: "passes", value: u64::from(settings.photons.passes) }
+        }
+    };
+    Ok(budget)
+}
+
+/// An image and the wall time it took.
+#[derive(Clone, Debug)]
+pub struct Timed {
+    /// The linear image.
+    pub image: Image,
+    /// Seconds to prepare (meshes, BVH, photon maps).
+    pub prepare_s: f64,
+    /// Seconds to render the pixels.
+    pub render_s: f64,
+}
+
+/// Prepares and renders `scene` in this process on the global rayon pool (all cores unless set otherwise).
+pub fn render_timed(scene: &Scene, scene_path: &Path) -> Result<Timed> {
+    let t0 = Instant::now();
+    let prep = Prepared::new(scene, scene_path)?;
+    let prepare_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let strip = photon_core::render::render_image(&prep, &prep.settings, &|_| {});
+    let render_s = t1.elapsed().as_secs_f64();
+    let image = Image { width: prep.camera.width, height: prep.camera.height, pixels: strip.pixels };
+    Ok(Timed { image, prepare_s, render_s })
+}
+
+/// One measured render of the sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Row {
+    /// The method.
+    pub method: Integrator,
+    /// The budget multiplier.
+    pub budget: u32,
+    /// What the multiplier set.
+    pub setting: Budget,
+    /// Wall seconds, prepare plus render.
+    pub seconds: f64,
+    /// RMSE against the reference.
+    pub rmse: f64,
+    /// Relative MSE against the reference.
+    pub rel_mse: f64,
+}
+
+/// The CSV header of [`csv`].
+pub const CSV_HEADER: &str = "method,budget,parameter,value,seconds,rmse,rel_mse";
+
+/// The rows as CSV with a header line.
+pub fn csv(rows: &[Row]) -> String {
+    let mut s = format!("{CSV_HEADER}\n");
+    for r in rows {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{:.6},{:.6e},{:.6e}",
+            r.method, r.budget, r.setting.parameter, r.setting.value, r.seconds, r.rmse, r.rel_mse
+        );
+    }
+    s
+}
+
+/// A method's curve: `(seconds, relMSE)` points, sorted by seconds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Curve {
+    /// The method.
+    pub method: Integrator,
+    /// Points sorted by time.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// The rows grouped into one curve per method, in the order methods first appear.
+pub fn curves(rows: &[Row]) -> Vec<Curve> {
+    let mut out: Vec<Curve> = Vec::new();
+    for r in rows {
+        match out.iter_mut().find(|c| c.method == r.method) {
+            Some(c) => c.points.push((r.seconds, r.rel_mse)),
+            None => out.push(Curve { method: r.method, points: vec![(r.seconds, r.rel_mse)] }),
+        }
+    }
+    for c in &mut out {
+        c.points.sort_by(|a, b| a.0.total_cmp(&b.0));
+    }
+    out
+}
+
+/// Linear interpolation between `(x0, y0)` and `(x1, y1)` in log-log space at `x` (all positive).
+fn lerp_log(x0: f64, y0: f64, x1: f64, y1: f64, x: f64) -> f64 {
+    if x1 == x0 {
+        return (y0 * y1).sqrt();
+    }
+    let t = (x.ln() - x0.ln()) / (x1.ln() - x0.ln());
+    (y0.ln() + t * (y1.ln() - y0.ln())).exp()
+}
+
+/// The curve's relMSE at `seconds`, interpolated in log-log between the neighbouring points; `None` outside the
+/// measured time range or where a value is not positive.
+pub fn error_at(curve: &Curve, seconds: f64) -> Option<f64> {
+    let p = &curve.points;
+    let first = p.first()?;
+    let last = p.last()?;
+    if !(first.0..=last.0).contains(&seconds) || p.iter().any(|&(t, e)| t <= 0.0 || e <= 0.0) {
+        return None;
+    }
+    let i = p.windows(2).position(|w| seconds <= w[1].0);
+    match i {
+        Some(i) => Some(lerp_log(p[i].0, p[i].1, p[i + 1].0, p[i + 1].1, seconds)),
+        None => Some(first.1),
+    }
+}
+
+/// Seconds the curve needs to reach relMSE `level`: the first segment, in time order, that falls from above
+/// `level` to at or below it, interpolated in log-log. `None` when the first point is already at or below the
+/// level (less time than measured would do) or no point reaches it.
+pub fn time_to(curve: &Curve, level: f64) -> Option<f64> {
+    let p = &curve.points;
+    if level <= 0.0 || p.iter().any(|&(t, e)| t <= 0.0 || e <= 0.0) || p.first()?.1 <= level {
+        return None;
+    }
+    p.windows(2).find(|w| w[0].1 > level && w[1].1 <= level).map(|w| {
+        let (t0, e0, t1, e1) = (w[0].0, w[0].1, w[1].0, w[1].1);
+        // Invert the log-log line: ln t = ln t0 + (ln level − ln e0) / (ln e1 − ln e0) · (ln t1 − ln t0).
+        let s = (level.ln() - e0.ln()) / (e1.ln() - e0.ln());
+        (t0.ln() + s * (t1.ln() - t0.ln())).exp()
+    })
+}
+
+/// `n` values spaced evenly in log between `lo` and `hi` inclusive (one value, `lo`, when `n` is 1).
+pub fn log_space(lo: f64, hi: f64, n: usize) -> Vec<f64> {
+    if n <= 1 {
+        return vec![lo];
+    }
+    (0..n).map(|i| (lo.ln() + (hi.ln() - lo.ln()) * i as f64 / (n - 1) as f64).exp()).collect()
+}
+
+/// Rounds to two significant digits, so table headings read as chosen levels rather than computed ones.
+fn round2(x: f64) -> f64 {
+    if x <= 0.0 || !x.is_finite() {
+        return x;
+    }
+    let scale = 10f64.powf(x.log10().floor() - 1.0);
+    (x / scale).round() * scale
+}
+
+/// The times of the equal-time table: `n` log-spaced times inside every curve's measured range, or none when
+/// the ranges do not overlap.
+pub fn common_times(curves: &[Curve], n: usize) -> Vec<f64> {
+    let lo = curves.iter().filter_map(|c| c.points.first().map(|p| p.0)).fold(0.0, f64::max);
+    let hi = curves.iter().filter_map(|c| c.points.last().map(|p| p.0)).fold(f64::INFINITY, f64::min);
+    if curves.is_empty() || lo <= 0.0 || lo > hi {
+        return Vec::new();
+    }
+    log_space(lo, hi, n)
+}
+
+/// The levels of the equal-error table: `n` log-spaced relMSE values strictly inside the range of all measured
+/// errors (from 15 % to 85 % of the way in log), rounded to two digits.
+pub fn error_levels(curves: &[Curve], n: usize) -> Vec<f64> {
+    let all = curves.iter().flat_map(|c| c.points.iter().map(|p| p.1)).filter(|e| *e > 0.0 && e.is_finite());
+    let (lo, hi) = all.fold((f64::INFINITY, 0.0f64), |(lo, hi), e| (lo.min(e), hi.max(e)));
+    if lo >= hi {
+        return Vec::new();
+    }
+    let (a, b) = (lo.ln(), hi.ln());
+    let mut levels: Vec<f64> =
+        log_space((a + 0.85 * (b - a)).exp(), (a + 0.15 * (b - a)).exp(), n).into_iter().map(round2).collect();
+    levels.dedup();
+    levels
+}
+
+/// Four significant digits, in scientific notation outside [0.001, 10 000).
+pub fn sig(x: f64) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if (1e-3..1e4).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
+/// A Markdown table: the first column names methods, the others are `columns`, cells from `cell`.
+fn table(curves: &[Curve], corner: &str, columns: &[String], cell: impl Fn(&Curve, usize) -> String) -> String {
+    let mut s = format!("| {corner} |");
+    for c in columns {
+        let _ = write!(s, " {c} |");
+    }
+    s.push_str("\n|---|");
+    s.push_str(&"---:|".repeat(columns.len()));
+    s.push('\n');
+    for c in curves {
+        let _ = write!(s, "| {} |", c.method);
+        for i in 0..columns.len() {
+            let _ = write!(s, " {} |", cell(c, i));
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The equal-time table: each method's relMSE at times inside every method's range (Markdown).
+pub fn equal_time_table(curves: &[Curve]) -> String {
+    let times = common_times(curves, 4);
+    if times.is_empty() {
+        return "(no time lies inside every method's measured range: widen --budget)\n".into();
+    }
+    let columns: Vec<String> = times.iter().map(|t| format!("relMSE at {} s", sig(*t))).collect();
+    table(curves, "method", &columns, |c, i| error_at(c, times[i]).map_or_else(|| "—".into(), sig))
+}
+
+/// The equal-error table: seconds each method needs to reach a few relMSE levels (Markdown).
+pub fn equal_error_table(curves: &[Curve]) -> String {
+    let levels = error_levels(curves, 4);
+    if levels.is_empty() {
+        return "(all errors are equal: no levels to compare)\n".into();
+    }
+    let columns: Vec<String> = levels.iter().map(|e| format!("s to relMSE {}", sig(*e))).collect();
+    table(curves, "method", &columns, |c, i| time_to(c, levels[i]).map_or_else(|| "—".into(), sig))
+}
+
+/// Draws relMSE against seconds on log-log axes, one line per method, to `svg` and `png`. The SVG has a title,
+/// axis labels, tick labels and a legend. The PNG has the same axes, grid and lines but no text: plotters
+/// rasterises text only through a font backend, which needs a font file or the system's fonts, and this build
+/// uses neither.
+pub fn draw_charts(curves: &[Curve], title: &str, svg: &Path, png: &Path) -> Result<()> {
+    use plotters::prelude::*;
+    let (w, h) = (800u32, 560u32);
+    {
+        let root = SVGBackend::new(svg, (w, h)).into_drawing_area();
+        draw(&root, curves, Some(title)).with_context(|| format!("drawing {}", svg.display()))?;
+        root.present().with_context(|| format!("writing {}", svg.display()))?;
+    }
+    let mut buf = vec![0u8; 3 * w as usize * h as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw(&root, curves, None).with_context(|| format!("drawing {}", png.display()))?;
+        root.present().with_context(|| format!("drawing {}", png.display()))?;
+    }
+    image::save_buffer(png, &buf, w, h, image::ExtendedColorType::Rgb8)
+        .with_context(|| format!("writing {}", png.display()))?;
+    Ok(())
+}
+
+/// The line colour of the `i`-th method (a colour-blind-safe palette, Wong 2011).
+fn colour(i: usize) -> plotters::style::RGBColor {
+    const WONG: [(u8, u8, u8); 7] =
+        [(0, 114, 178), (213, 94, 0), (0, 158, 115), (204, 121, 167), (230, 159, 0), (86, 180, 233), (0, 0, 0)];
+    let (r, g, b) = WONG[i % WONG.len()];
+    plotters::style::RGBColor(r, g, b)
+}
+
+/// The axis range `[lo, hi]` of positive values, widened to whole powers of ten.
+fn decade_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) =
+        values.filter(|v| *v > 0.0 && v.is_finite()).fold((f64::INFINITY, 0.0f64), |(l, h), v| (l.min(v), h.max(v)));
+    if lo > hi {
+        return (0.1, 1.0);
+    }
+    let lo = 10f64.powf(lo.log10().floor());
+    let hi = 10f64.powf(hi.log10().ceil());
+    if hi > lo { (lo, hi) } else { (lo, lo * 10.0) }
+}
+
+/// The powers of ten from `lo` to `hi` (both powers of ten, as [`decade_range`] makes them).
+fn decades((lo, hi): (f64, f64)) -> Vec<f64> {
+    let (a, b) = (lo.log10().round() as i32, hi.log10().round() as i32);
+    (a..=b).map(|e| 10f64.powi(e)).collect()
+}
+
+/// A tick label on a log axis: `0.01`, `1`, `100` between 10⁻³ and 10³, `1e-5` outside.
+fn decade_label(v: f64) -> String {
+    let e = v.log10().round();
+    if (v / 10f64.powf(e) - 1.0).abs() > 1e-6 {
+        return sig(v);
+    }
+    if (-3.0..=3.0).contains(&e) { format!("{}", 10f64.powf(e) as f32) } else { format!("1e{e}") }
+}
+
+/// The chart on one drawing area; `title` (and every other text) only when given.
+fn draw<DB: plotters::prelude::DrawingBackend>(
+    root: &plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    curves: &[Curve],
+    title: Option<&str>,
+) -> Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    root.fill(&WHITE)?;
+    let xr = decade_range(curves.iter().flat_map(|c| c.points.iter().map(|p| p.0)));
+    let yr = decade_range(curves.iter().flat_map(|c| c.points.iter().map(|p| p.1)));
+    let labels = title.is_some();
+    let mut builder = ChartBuilder::on(root);
+    builder.margin(20);
+    if let Some(t) = title {
+        builder.caption(t, ("sans-serif", 22)).x_label_area_size(50).y_label_area_size(70);
+    } else {
+        builder.x_label_area_size(0).y_label_area_size(0);
+    }
+    let mut chart = builder.build_cartesian_2d((xr.0..xr.1).log_scale(), (yr.0..yr.1).log_scale())?;
+    if labels {
+        chart
+            .configure_mesh()
+            .x_desc("wall seconds (prepare + render)")
+            .y_desc("relative MSE")
+            .label_style(("sans-serif", 14))
+            .axis_desc_style(("sans-serif", 16))
+            .x_label_formatter(&|v| decade_label(*v))
+            .y_label_formatter(&|v| decade_label(*v))
+            .draw()?;
+    } else {
+        // The mesh would draw tick labels; without a font, draw the decade grid and the frame by hand.
+        let grey = RGBColor(200, 200, 200);
+        for x in decades(xr) {
+            chart.draw_series(LineSeries::new([(x, yr.0), (x, yr.1)], grey.stroke_width(1)))?;
+        }
+        for y in decades(yr) {
+            chart.draw_series(LineSeries::new([(xr.0, y), (xr.1, y)], grey.stroke_width(1)))?;
+        }
+        chart.draw_series([Rectangle::new([(xr.0, yr.0), (xr.1, yr.1)], BLACK.stroke_width(1))])?;
+    }
+    for (i, c) in curves.iter().enumerate() {
+        let col = colour(i);
+        let series = chart.draw_series(LineSeries::new(c.points.iter().copied(), col.stroke_width(2)))?;
+        if labels {
+            series
+                .label(c.method.name())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], col.stroke_width(2)));
+        }
+        chart.draw_series(c.points.iter().map(|&p| Circle::new(p, 4, col.filled())))?;
+    }
+    if labels {
+        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw()?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn curve(points: &[(f64, f64)]) -> Curve {
+        Curve { method: Integrator::Path, points: points.to_vec() }
+    }
+
+    #[test]
+    fn budgets_grow_the_right_setting() {
+        let mut s = RenderSettings::default();
+        let k = s.photons.k;
+        assert_eq!(apply_budget(&mut s, Integrator::Path, 8).unwrap(), Budget { parameter: "spp", value: 32 });
+        assert_eq!(s.spp, 32);
+        let b = apply_budget(&mut s, Integrator::PhotonMap, 4).unwrap();
+        assert_eq!((b.value, s.photons.global, s.photons.k, s.spp), (100_000, 100_000, k, PHOTON_METHOD_SPP));
+        apply_budget(&mut s, Integrator::FinalGather, 2).unwrap();
+        assert_eq!((s.photons.global, s.photons.caustic), (50_000, 50_000));
+        assert_eq!(apply_budget(&mut s, Integrator::Progressive, 16).unwrap().value, 64);
+        assert_eq!(s.integrator, Integrator::Progressive);
+        assert!(apply_budget(&mut s, Integrator::Path, u32::MAX).is_err());
+    }
+
+    #[test]
+    fn a_power_law_interpolates_exactly_in_log_log() {
+        // relMSE = 1 / t: a straight line of slope −1 in log-log.
+        let c = curve(&[(1.0, 1.0), (4.0, 0.25), (16.0, 1.0 / 16.0)]);
+        let e = error_at(&c, 2.0).unwrap();
+        assert!((e - 0.5).abs() < 1e-12, "{e}");
+        let t = time_to(&c, 0.1).unwrap();
+        assert!((t - 10.0).abs() < 1e-9, "{t}");
+        assert_eq!(error_at(&c, 0.5), None);
+        assert_eq!(error_at(&c, 17.0), None);
+        assert_eq!(time_to(&c, 0.01), None, "never reached");
+        assert_eq!(time_to(&c, 2.0), None, "already below at the first point");
+    }
+
+    #[test]
+    fn equal_time_uses_only_the_common_range() {
+        let a = curve(&[(1.0, 1.0), (10.0, 0.1)]);
+        let b = curve(&[(2.0, 0.5), (20.0, 0.05)]);
+        let t = common_times(&[a.clone(), b.clone()], 3);
+        assert_eq!(t.len(), 3);
+        assert!((t[0] - 2.0).abs() < 1e-12 && (t[2] - 10.0).abs() < 1e-9);
+        assert!(common_times(&[a, curve(&[(11.0, 1.0), (12.0, 0.5)])], 3).is_empty());
+        let table = equal_time_table(&[b]);
+        assert_eq!(table.lines().count(), 3, "{table}");
+    }
+
+    #[test]
+    fn csv_has_a_row_per_render() {
+        let row = Row {
+            method: Integrator::Progressive,
+            budget: 2,
+            setting: Budget { parameter: "passes", value: 8 },
+            seconds: 1.5,
+            rmse: 0.25,
+            rel_mse: 0.125,
+        };
+        let s = csv(&[row.clone(), row]);
+        let lines: Vec<&str> = s.lines().collect();
+        assert_eq!(lines[0], CSV_HEADER);
+        assert_eq!(lines.len(), 3);
+        assert!(lines[1].starts_with("progressive,2,passes,8,1.5"), "{}", lines[1]);
+    }
+}

@@ -1,0 +1,82 @@
+//! `photon-coordinator reference` and `sweep` end to end on a 12×12 Cornell box: the reference is a path-traced
+//! EXR; the sweep writes one CSV row per method and budget with finite values, each method's error at the
+//! largest budget is below its error at the smallest, and both charts are written.
+#![allow(clippy::unwrap_used)]
+
+use photon_tests::{coordinator, scenes_dir, temp_dir};
+use std::process::{Command, Output};
+
+fn run(dir: &std::path::Path, args: &[&str]) -> Output {
+    let out = Command::new(coordinator()).current_dir(dir).args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?} failed\nstdout: {}\nstderr: {}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+#[test]
+fn reference_then_sweep_writes_a_falling_csv_and_charts() {
+    let dir = temp_dir("sweep-cli", "cornell");
+    let scene = scenes_dir().join("cornell.toml");
+    let scene = scene.to_str().unwrap();
+
+    let out = run(&dir, &["reference", scene, "-o", "ref.exr", "--spp", "256", "--size", "12x12"]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("reference method: path"), "{stdout}");
+    assert!(dir.join("ref.exr").is_file());
+
+    // Fewer photons per progressive pass keep the test short; the budget still grows the passes.
+    let args = ["sweep", scene, "--reference", "ref.exr", "--methods", "path,progressive", "--budget", "1,4,16"];
+    let more = ["--size", "12x12", "--out", "out", "--set", "render.photons.pass_photons=20000"];
+    let out = run(&dir, &[&args[..], &more[..]].concat());
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("equal time") && stdout.contains("equal error"), "{stdout}");
+
+    let csv = std::fs::read_to_string(dir.join("out/sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("method,budget,parameter,value,seconds,rmse,rel_mse"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert_eq!(rows.len(), 6, "{csv}");
+    for r in &rows {
+        assert_eq!(r.len(), 7, "{r:?}");
+        for v in &r[4..] {
+            let x: f64 = v.parse().unwrap();
+            assert!(x.is_finite() && x >= 0.0, "{r:?}");
+        }
+    }
+    for method in ["path", "progressive"] {
+        let rel: Vec<(u32, f64)> =
+            rows.iter().filter(|r| r[0] == method).map(|r| (r[1].parse().unwrap(), r[6].parse().unwrap())).collect();
+        assert_eq!(rel.iter().map(|r| r.0).collect::<Vec<_>>(), [1, 4, 16], "{method}: {rel:?}");
+        assert!(rel[2].1 < rel[0].1, "{method}: relMSE grew with the budget: {rel:?}");
+    }
+    for chart in ["sweep.svg", "sweep.png"] {
+        let len = std::fs::metadata(dir.join("out").join(chart)).unwrap().len();
+        assert!(len > 0, "{chart} is empty");
+    }
+    let svg = std::fs::read_to_string(dir.join("out/sweep.svg")).unwrap();
+    assert!(svg.contains("progressive") && svg.contains("relative MSE"), "the SVG lacks its legend or labels");
+}
+
+#[test]
+fn reference_must_be_exr_and_sweep_size_must_match() {
+    let dir = temp_dir("sweep-cli", "errors");
+    let scene = scenes_dir().join("cornell.toml");
+    let scene = scene.to_str().unwrap();
+    let out = Command::new(coordinator()).current_dir(&dir).args(["reference", scene, "-o", "ref.png"]).output();
+    let out = out.unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains(".exr"));
+
+    run(&dir, &["reference", scene, "-o", "ref.exr", "--spp", "4", "--size", "8x8"]);
+    let out = Command::new(coordinator())
+        .current_dir(&dir)
+        .args(["sweep", scene, "--reference", "ref.exr", "--methods", "path", "--budget", "1", "--size", "9x9"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("differs from the reference"));
+}
