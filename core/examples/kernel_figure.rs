@@ -11,7 +11,9 @@
 //! (rows: radius, k-nearest; columns: kernels). It prints a markdown table of the same numbers.
 //!
 //! Every tile reads the same global photon map (same photon count and seed), built once and timed apart
-//! from rendering, so the tiles differ only in how the photons are gathered and weighted.
+//! from rendering, and the same camera samples, so the tiles differ only in how the photons are gathered and
+//! weighted. Each tile also has an untimed twin rendered with the next seed (its own photon map and pixel
+//! samples), which splits its error into variance and bias (see [`Scores`]).
 //!
 //! Options (defaults in brackets): `--size N` [192] square image side, `--spp N` [32] samples per pixel of the
 //! tiles, `--photons N` [200000] global photon paths, `--radius R` [0.05] fixed gather radius, `--k N` [100]
@@ -19,9 +21,9 @@
 //! seed of the photons and the tiles' pixel samples, `--ref-spp N` [4096] samples per pixel of the reference,
 //! `--reference FILE` an EXR reference to reuse instead of rendering one.
 //!
-//! Tiles take 32 samples per pixel because at 4 the pixel noise (antialiasing at the light's edges, the
-//! Fresnel choice in the glass sphere) is larger than every kernel's error and hides their differences; the
-//! program measures that noise (the first tile again with another seed) and prints it.
+//! Tiles take 32 samples per pixel: at 4, the tiles' pixel-sampling noise alone (RMSE ≈ 0.087, measured
+//! with two seeds at 192 × 192 on `cornell.toml`) exceeds the whole error of a 32-sample tile (≈ 0.023) and
+//! hides the kernels' differences.
 //!
 //! The reference is rendered as two halves with different seeds; `E[(a − b)²] / 4` over the halves `a`, `b` is
 //! the variance of their mean, the reference's own noise. Every measured MSE includes it (the reference noise
@@ -121,8 +123,45 @@ struct Tile {
     gather: GatherMode,
     file: String,
     render_s: f64,
+    scores: Scores,
+}
+
+/// A tile's error against the reference, and its split into variance and bias.
+///
+/// With `a` the tile, `b` its twin (the next seed: other photons, other pixel samples) and `r` the reference of
+/// own noise `ρ`: `E[(a − r)²] = bias² + σ² + ρ` and `E[(a − b)²] = 2σ²`, so `σ²` is half the mean squared
+/// difference of the twins and `bias² = ½(MSE_a + MSE_b) − σ² − ρ`. The relative forms divide each term by
+/// `r² + 0.01` first. Either bias² is an estimate and can come out slightly negative when bias is tiny.
+struct Scores {
+    /// RMSE of `a` (the tile shown).
     rmse: f64,
+    /// Relative MSE of `a`.
     rel_mse: f64,
+    /// σ²: photon noise plus pixel-sampling noise.
+    variance: f64,
+    /// bias² (systematic error of the estimate).
+    bias2: f64,
+    /// σ² relative.
+    rel_variance: f64,
+    /// bias² relative.
+    rel_bias2: f64,
+}
+
+impl Scores {
+    fn new(a: &[f32], b: &[f32], reference: &[f32], (rho, rel_rho): (f64, f64)) -> Self {
+        let (mse_a, rel_a) = mean_squares(a, reference, reference);
+        let (mse_b, rel_b) = mean_squares(b, reference, reference);
+        let (d, rel_d) = mean_squares(a, b, reference);
+        let (variance, rel_variance) = (d / 2.0, rel_d / 2.0);
+        Scores {
+            rmse: mse_a.sqrt(),
+            rel_mse: rel_a,
+            variance,
+            bias2: 0.5 * (mse_a + mse_b) - variance - rho,
+            rel_variance,
+            rel_bias2: 0.5 * (rel_a + rel_b) - rel_variance - rel_rho,
+        }
+    }
 }
 
 fn kernel_name(k: Kernel) -> &'static str {
@@ -143,17 +182,17 @@ fn gather_name(g: GatherMode) -> &'static str {
     }
 }
 
-/// RMSE and relative MSE (mean of `(x − r)² / (r² + 0.01)`) over every channel of every pixel, in f64.
-fn errors(x: &[f32], reference: &[f32]) -> (f64, f64) {
+/// The mean of `(x − y)²` and of `(x − y)² / (r² + 0.01)` over every channel of every pixel, in f64: with
+/// `y = r` the MSE and the relative MSE of `x` against the reference `r`.
+fn mean_squares(x: &[f32], y: &[f32], reference: &[f32]) -> (f64, f64) {
     let n = x.len().max(1) as f64;
     let (mut se, mut rel) = (0.0f64, 0.0f64);
-    for (&a, &r) in x.iter().zip(reference) {
-        let (a, r) = (f64::from(a), f64::from(r));
-        let d2 = (a - r) * (a - r);
-        se += d2;
-        rel += d2 / (r * r + 0.01);
+    for ((&a, &b), &r) in x.iter().zip(y).zip(reference) {
+        let (d, r) = (f64::from(a) - f64::from(b), f64::from(r));
+        se += d * d;
+        rel += d * d / (r * r + 0.01);
     }
-    ((se / n).sqrt(), rel / n)
+    (se / n, rel / n)
 }
 
 /// Standard base64 (RFC 4648, with padding) of `bytes`.
@@ -174,8 +213,17 @@ fn base64(bytes: &[u8]) -> String {
     out
 }
 
-/// The reference image and its own estimated MSE (if known): read from `path`, or path-traced in two halves.
-fn reference(o: &Options, scene: &Scene) -> Result<(Image, Option<f64>, String), Error> {
+/// The path-traced reference.
+struct Reference {
+    image: Image,
+    /// Its own MSE and relative MSE, when known.
+    noise: Option<(f64, f64)>,
+    /// Its samples per pixel, as text (`?` when unknown).
+    spp: String,
+}
+
+/// The reference: read from `--reference`, or path-traced in two halves.
+fn reference(o: &Options, scene: &Scene) -> Result<Reference, Error> {
     let (w, h) = (scene.camera.width, scene.camera.height);
     if let Some(path) = &o.reference {
         let img = Image::read(path)?;
@@ -183,10 +231,11 @@ fn reference(o: &Options, scene: &Scene) -> Result<(Image, Option<f64>, String),
             return Err(format!("{}: {}×{}, expected {w}×{h}", path.display(), img.width, img.height).into());
         }
         let note = std::fs::read_to_string(path.with_extension("txt")).ok();
-        let noise = note.as_deref().and_then(|t| key_value(t, "noise_mse")).and_then(|v| v.parse().ok());
+        let value = |key: &str| note.as_deref().and_then(|t| key_value(t, key)).and_then(|v| v.parse().ok());
+        let noise = value("noise_mse").zip(value("noise_rel_mse"));
         let spp = note.as_deref().and_then(|t| key_value(t, "spp")).unwrap_or("?").to_string();
         println!("reference: {} ({spp} spp)", path.display());
-        return Ok((img, noise, spp));
+        return Ok(Reference { image: img, noise, spp });
     }
     let mut settings = scene.render.clone();
     settings.integrator = Integrator::Path;
@@ -203,15 +252,18 @@ fn reference(o: &Options, scene: &Scene) -> Result<(Image, Option<f64>, String),
     let secs = t.elapsed().as_secs_f64();
     let pixels: Vec<f32> = a.iter().zip(&b).map(|(x, y)| 0.5 * (x + y)).collect();
     // E[(a − b)²] = 2σ² for halves of variance σ²; their mean has variance σ²/2 = E[(a − b)²]/4.
-    let (half_rmse, _) = errors(&a, &b);
-    let noise = half_rmse * half_rmse / 4.0;
+    let (d, rel_d) = mean_squares(&a, &b, &pixels);
+    let noise = (d / 4.0, rel_d / 4.0);
     let spp = (2 * settings.spp).to_string();
-    println!("reference: path tracer, {spp} spp, {secs:.1} s, own RMSE ≈ {:.5}", noise.sqrt());
+    println!("reference: path tracer, {spp} spp, {secs:.1} s, own RMSE ≈ {:.5}", noise.0.sqrt());
     let img = Image { width: w, height: h, pixels };
     let path = o.out.join("reference.exr");
     img.write(&path, 0.0)?;
-    std::fs::write(path.with_extension("txt"), format!("spp = {spp}\nnoise_mse = {noise:e}\nseconds = {secs:.1}\n"))?;
-    Ok((img, Some(noise), spp))
+    std::fs::write(
+        path.with_extension("txt"),
+        format!("spp = {spp}\nnoise_mse = {:e}\nnoise_rel_mse = {:e}\nseconds = {secs:.1}\n", noise.0, noise.1),
+    )?;
+    Ok(Reference { image: img, noise: Some(noise), spp })
 }
 
 /// The value of `key = value` in a small text file.
@@ -229,88 +281,81 @@ fn main() -> Result<(), Error> {
     scene.camera.width = o.size;
     scene.camera.height = o.size;
     let exposure = scene.render.exposure;
-    let (reference, ref_noise, ref_spp) = reference(&o, &scene)?;
+    let Reference { image: reference, noise: ref_noise, spp: ref_spp } = reference(&o, &scene)?;
     reference.write(&o.out.join("reference.png"), exposure)?;
 
-    // Prepare without photons, then build the global map once and time it on its own.
+    // Prepare without photons, then build the global map once and time it on its own. A second preparation
+    // with the next seed (its own photons and pixel samples) gives every tile an independent twin, for the
+    // split of the error into variance and bias.
     scene.render.integrator = Integrator::Path;
     scene.render.spp = o.spp;
     scene.render.seed = o.seed.unwrap_or(scene.render.seed);
     scene.render.photons.global = o.photons;
     let mut prep = Prepared::new(&scene, &o.scene)?;
     prep.settings.integrator = Integrator::PhotonMap;
+    let mut twin = prep.clone();
+    twin.settings.seed = twin.settings.seed.wrapping_add(1);
     let t = Instant::now();
     prep.photons = Some(prep.build_photon_maps()?);
     let build_s = t.elapsed().as_secs_f64();
+    twin.photons = Some(twin.build_photon_maps()?);
     let stored = prep.photons.as_ref().map_or(0, |m| m.global.len());
     println!("global map: {} paths, {stored} photons stored, built in {build_s:.2} s", o.photons);
 
     let mut tiles = Vec::new();
-    let mut tile_noise = (0.0, 0.0);
     for gather in GATHERS {
         for kernel in KERNELS {
-            let ph = &mut prep.settings.photons;
-            ph.gather = gather;
-            ph.kernel = kernel;
-            ph.k = o.k;
-            ph.radius = Some(if gather == GatherMode::Radius { o.radius } else { o.max_radius });
-            let estimator = prep.estimator();
-            if let Some(maps) = prep.photons.as_mut() {
-                maps.estimator = estimator;
+            for p in [&mut prep, &mut twin] {
+                configure(p, &o, gather, kernel);
             }
             let t = Instant::now();
-            let strip = render_image(&prep, &prep.settings, &|_| {});
+            let a = render_image(&prep, &prep.settings, &|_| {}).pixels;
             let render_s = t.elapsed().as_secs_f64();
-
-            let (rmse, rel_mse) = errors(&strip.pixels, &reference.pixels);
+            let b = render_image(&twin, &twin.settings, &|_| {}).pixels;
+            // A reference of unknown noise (an EXR without its `reference.txt`) leaves that noise in bias².
+            let scores = Scores::new(&a, &b, &reference.pixels, ref_noise.unwrap_or((0.0, 0.0)));
             let file = format!("{}-{}.png", kernel_name(kernel), gather_name(gather));
-            let tile = Image { width: o.size, height: o.size, pixels: strip.pixels };
-            tile.write(&o.out.join(&file), exposure)?;
-            eprintln!("{file}: {render_s:.2} s, RMSE {rmse:.5}, relMSE {rel_mse:.5}");
-            if tiles.is_empty() {
-                // The tiles' own pixel noise (antialiasing, the Fresnel choice in glass): the first tile again
-                // with another seed; E[(a − b)²] = 2σ².
-                let mut settings = prep.settings.clone();
-                settings.seed = settings.seed.wrapping_add(1);
-                let again = render_image(&prep, &settings, &|_| {});
-                let (d, rel) = errors(&again.pixels, &tile.pixels);
-                tile_noise = (d * d / 2.0, rel / 2.0);
-            }
-            tiles.push(Tile { kernel, gather, file, render_s, rmse, rel_mse });
+            Image { width: o.size, height: o.size, pixels: a }.write(&o.out.join(&file), exposure)?;
+            eprintln!("{file}: {render_s:.2} s, RMSE {:.5}, relMSE {:.5}", scores.rmse, scores.rel_mse);
+            tiles.push(Tile { kernel, gather, file, render_s, scores });
         }
     }
 
     let radius_of = |g: GatherMode| if g == GatherMode::Radius { o.radius } else { o.max_radius };
-    let mut csv = String::from("kernel,gather,photons,k,radius,build_s,render_s,rmse,rel_mse\n");
+    let mut csv = String::from(
+        "kernel,gather,photons,k,radius,build_s,render_s,rmse,rel_mse,variance,bias2,rel_variance,rel_bias2\n",
+    );
     let mut table = String::from(
-        "| kernel | gather | photons | k | radius | build s | render s | RMSE | relMSE |\n\
-         |---|---|---:|---:|---:|---:|---:|---:|---:|\n",
+        "| kernel | gather | photons | k | radius | build s | render s | RMSE | relMSE | rel. variance | rel. bias² |\n\
+         |---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n",
     );
     for t in &tiles {
         let k = if t.gather == GatherMode::KNearest { o.k.to_string() } else { String::new() };
         let (kn, gn, r) = (kernel_name(t.kernel), gather_name(t.gather), radius_of(t.gather));
-        writeln!(csv, "{kn},{gn},{},{k},{r},{build_s:.3},{:.3},{:.6},{:.6}", o.photons, t.render_s, t.rmse, t.rel_mse)?;
+        let sc = &t.scores;
+        writeln!(
+            csv,
+            "{kn},{gn},{},{k},{r},{build_s:.3},{:.3},{:.6},{:.6},{:.3e},{:.3e},{:.3e},{:.3e}",
+            o.photons, t.render_s, sc.rmse, sc.rel_mse, sc.variance, sc.bias2, sc.rel_variance, sc.rel_bias2
+        )?;
         let k = if k.is_empty() { "–".to_string() } else { k };
         let r = if t.gather == GatherMode::KNearest { format!("≤ {r}") } else { r.to_string() };
         writeln!(
             table,
-            "| {kn} | {gn} | {} | {k} | {r} | {build_s:.2} | {:.1} | {:.4} | {:.5} |",
-            o.photons, t.render_s, t.rmse, t.rel_mse
+            "| {kn} | {gn} | {} | {k} | {r} | {build_s:.2} | {:.1} | {:.4} | {:.5} | {:.5} | {:.5} |",
+            o.photons, t.render_s, sc.rmse, sc.rel_mse, sc.rel_variance, sc.rel_bias2
         )?;
     }
     std::fs::write(o.out.join("kernels.csv"), csv)?;
     println!();
     print!("{table}");
     let ref_note = match ref_noise {
-        Some(n) => format!("own RMSE ≈ {:.4}", n.sqrt()),
-        None => "own noise unknown".to_string(),
+        Some((n, _)) => format!("RMSE ≈ {:.4}", n.sqrt()),
+        None => "unknown".to_string(),
     };
     let noise_note = format!(
-        "Own noise: reference {ref_note}; tiles' pixel sampling at {} spp RMSE ≈ {:.4}, relMSE ≈ {:.5} (first tile, \
-         two seeds). Outlined: the lowest RMSE of its row.",
-        o.spp,
-        tile_noise.0.sqrt(),
-        tile_noise.1
+        "Reference's own noise {ref_note}. Captions: the tile's RMSE and relMSE, and its render time (the photon \
+         map took {build_s:.2} s). Outlined: the lowest RMSE of its row."
     );
     println!("\nreference: path tracer, {ref_spp} spp. {noise_note}");
     let title = [
@@ -321,11 +366,24 @@ fn main() -> Result<(), Error> {
         ),
         noise_note,
     ];
-    let reference_label = [format!("reference (path tracer, {ref_spp} spp):"), ref_note];
+    let reference_label = [format!("path tracer, {ref_spp} spp:"), format!("own noise {ref_note}")];
     let svg = compose_svg(&o.out, o.size, &tiles, &title, &reference_label)?;
     std::fs::write(o.out.join("kernels.svg"), svg)?;
     println!("wrote {}", o.out.join("kernels.svg").display());
     Ok(())
+}
+
+/// Sets the gather and the kernel of a tile in `prep`'s settings and in its photon maps' estimator.
+fn configure(prep: &mut Prepared, o: &Options, gather: GatherMode, kernel: Kernel) {
+    let ph = &mut prep.settings.photons;
+    ph.gather = gather;
+    ph.kernel = kernel;
+    ph.k = o.k;
+    ph.radius = Some(if gather == GatherMode::Radius { o.radius } else { o.max_radius });
+    let estimator = prep.estimator();
+    if let Some(maps) = prep.photons.as_mut() {
+        maps.estimator = estimator;
+    }
 }
 
 /// The figure: the reference on the left, then one row per gather mode and one column per kernel, the PNG
@@ -375,11 +433,11 @@ fn compose_svg(
     for (row, gather) in GATHERS.iter().enumerate() {
         let y = top + row as u32 * cell_h;
         let in_row: Vec<&Tile> = tiles.iter().filter(|t| t.gather == *gather).collect();
-        let best = in_row.iter().map(|t| t.rmse).fold(f64::INFINITY, f64::min);
+        let best = in_row.iter().map(|t| t.scores.rmse).fold(f64::INFINITY, f64::min);
         for (col, t) in in_row.iter().enumerate() {
             let x = col_x(col + 1);
             image(&mut s, &t.file, x, y)?;
-            if t.rmse == best {
+            if t.scores.rmse == best {
                 writeln!(
                     s,
                     r##"<rect x="{}" y="{}" width="{}" height="{}" fill="none" stroke="#1a9641" stroke-width="3"/>"##,
@@ -390,7 +448,7 @@ fn compose_svg(
                 )?;
             }
             let l1 = format!("{} {}", kernel_name(t.kernel), gather_name(t.gather));
-            let l2 = format!("RMSE {:.4}, relMSE {:.5}, {:.1} s", t.rmse, t.rel_mse, t.render_s);
+            let l2 = format!("RMSE {:.4}, relMSE {:.5}, {:.1} s", t.scores.rmse, t.scores.rel_mse, t.render_s);
             label(&mut s, x, y + size, &format!("{l1}:"), &l2)?;
         }
     }

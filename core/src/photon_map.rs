@@ -41,6 +41,7 @@
 //! A skipped photon still counts towards `k`, and the radius stays what the gather found: the density is
 //! per unit area of the disc around `p`, and skipped photons simply belong to some other surface.
 
+use std::num::NonZeroUsize;
 use std::sync::Arc;
 
 use glam::Vec3A;
@@ -248,11 +249,14 @@ impl PhotonMap {
     ///
     /// Radius first: kiddo's k-nearest search costs about three times a radius search that returns as many
     /// photons, so this gathers within a guessed radius — 1.5× the squared radius of this thread's previous
-    /// query, which neighbouring pixels make a good guess — and, if that holds fewer than `k`, within
-    /// `max_r2`; then it keeps the `k` nearest. The guess changes only the work, never the result.
+    /// query, which neighbouring pixels make a good guess — and keeps the `k` nearest. When the guess holds
+    /// fewer than `k`, kiddo's k-nearest search finds the k-th distance and a radius search to it collects the
+    /// ties, so the result never depends on the guess (only the work does) and no query scans more than the
+    /// k-th photon's disc.
     pub fn k_nearest(&self, p: Vec3A, k: usize, max_r2: f32, out: &mut Vec<(u32, f32)>) {
         out.clear();
-        if k == 0 || self.photons.is_empty() {
+        let Some(k_nz) = NonZeroUsize::new(k) else { return };
+        if self.photons.is_empty() {
             return;
         }
         let guess = LAST_KTH_R2.get() * 1.5;
@@ -260,7 +264,16 @@ impl PhotonMap {
             self.within(p, guess, out);
         }
         if out.len() < k {
-            self.within(p, max_r2, out);
+            let q: [f32; 3] = p.into();
+            let found = self.tree.query(&q).nearest_n::<Metric>(k_nz).within(max_r2).execute();
+            match found.last() {
+                Some(kth) if found.len() == k => self.within(p, kth.distance, out),
+                // Fewer than k within max_r2: that is all of them.
+                _ => {
+                    out.clear();
+                    out.extend(found.iter().map(|r| (r.item, r.distance)));
+                }
+            }
         }
         let order = |a: &(u32, f32), b: &(u32, f32)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
         if out.len() > k {
