@@ -241,10 +241,15 @@ fn render(args: RenderArgs) -> Result<()> {
     let render_s = t1.elapsed().as_secs_f64();
     let image = Image { width, height, pixels: strip.pixels };
     image.write(&args.output, settings.exposure)?;
+    // Progressive photon mapping takes one camera sample per pass; the others take `spp`.
+    let samples = if settings.integrator == Integrator::Progressive {
+        format!("{} passes of {} photon paths", settings.photons.passes, settings.photons.pass_photons)
+    } else {
+        format!("{} spp", settings.spp)
+    };
     println!(
-        "{}: {width}x{height}, {} spp, {}, {:.2} s render (+{:.2} s prepare), {:.2} Mrays/s",
+        "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare), {:.2} Mrays/s",
         args.output.display(),
-        settings.spp,
         settings.integrator,
         render_s,
         prepare_s,
