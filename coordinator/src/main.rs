@@ -4,7 +4,7 @@
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use photon_coordinator::sweep;
+use photon_coordinator::sweep::{self, sig};
 use photon_core::image_io::{Format, Image};
 use photon_core::metrics::{self, Metrics, Region};
 use photon_core::prepare::Prepared;
@@ -402,18 +402,5 @@ fn print_metrics(m: &Metrics) {
     ];
     for (label, value) in rows {
         println!("  {label:<26}{value}");
-    }
-}
-
-/// Four significant digits, in scientific notation outside [0.001, 10 000).
-fn sig(x: f64) -> String {
-    let a = x.abs();
-    if x == 0.0 || !x.is_finite() {
-        format!("{x}")
-    } else if (1e-3..1e4).contains(&a) {
-        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
-        format!("{x:.decimals$}")
-    } else {
-        format!("{x:.3e}")
     }
 }
