@@ -9,8 +9,10 @@
 #
 # References: the path tracer at REF_SPP samples, except in the scenes whose only light is a point light
 # seen through glass (point-caustic, light-in-glass), where no camera path can reach the light through the
-# glass; there the reference is `progressive` at REF_PASSES passes. References use another seed than the
-# method renders, so a progressive render is not correlated with the progressive reference's first passes.
+# glass, and in grazing-light, whose point light 1 mm above the floor makes the first bounce so bright that a
+# 2048-spp path-traced reference is still fireflies; there the reference is `progressive` at REF_PASSES passes.
+# References use another seed than the method renders, so a progressive render is not correlated with the
+# progressive reference's first passes.
 #
 # Environment: PHOTON_BIN (default target/release/photon-coordinator, built here if absent), SIZE (96x96),
 # THREADS (2), REF_SPP (2048), REF_PASSES (256), LIMIT (90: seconds before a render is stopped and recorded
@@ -27,7 +29,7 @@ ref_spp=${REF_SPP:-2048}
 ref_passes=${REF_PASSES:-256}
 limit=${LIMIT:-90}
 ref_seed=1001
-progressive_reference=" point-caustic light-in-glass "
+progressive_reference=" point-caustic light-in-glass grazing-light "
 
 if [[ ! -x $bin ]]; then
     cargo build --release -p photon-coordinator
