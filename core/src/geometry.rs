@@ -157,6 +157,14 @@ pub struct Hit {
     pub prim: PrimRef,
 }
 
+impl Hit {
+    /// The geometric normal turned to the side of `w` (towards `w` when `w · n = 0`).
+    #[inline]
+    pub fn normal_towards(&self, w: Vec3A) -> Vec3A {
+        if w.dot(self.n) >= 0.0 { self.n } else { -self.n }
+    }
+}
+
 /// All the surfaces of a scene.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 pub struct Geometry {

@@ -176,7 +176,7 @@ pub fn precompute_irradiance(global: &PhotonMap, est: &Estimator, stride: usize)
 /// approximation for glossy surfaces, which final gathering blurs anyway). Falls back on the full estimate.
 fn gathered_radiance(maps: &PhotonMaps, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> Rgb {
     let Some(irr) = &maps.irradiance else { return photon_radiance(&maps.global, &maps.estimator, hit, bsdf, wo) };
-    let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+    let n = hit.normal_towards(wo);
     let radius = match maps.estimator.gather {
         crate::photon_map::Gather::KNearest { max_radius, .. } => max_radius,
         crate::photon_map::Gather::Radius { radius } => radius,
@@ -201,7 +201,7 @@ thread_local! {
 
 /// Reflected radiance at `hit` towards `wo` from a photon map, through the non-delta part of `bsdf`.
 pub fn photon_radiance(map: &PhotonMap, est: &Estimator, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> Rgb {
-    let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+    let n = hit.normal_towards(wo);
     SCRATCH.with_borrow_mut(|scratch| {
         map.estimate(est, hit.p, n, hit.object, |wi| bsdf.f(wo, wi, TransportMode::Radiance), scratch)
     })
@@ -209,7 +209,7 @@ pub fn photon_radiance(map: &PhotonMap, est: &Estimator, hit: &Hit, bsdf: &Bsdf,
 
 /// Progressive photon mapping's gather at `hit`: flux `Σ f·Φ` of the accepted photons and their count.
 pub fn photon_flux(map: &PhotonMap, est: &Estimator, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> (Rgb, usize) {
-    let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+    let n = hit.normal_towards(wo);
     SCRATCH.with_borrow_mut(|scratch| {
         map.gather_flux(est, hit.p, n, hit.object, |wi| bsdf.f(wo, wi, TransportMode::Radiance), scratch)
     })

@@ -145,12 +145,27 @@ impl Metrics {
     }
 }
 
-/// Checks that the buffer matches the size and that every value is finite.
-fn check(img: &Image, which: &'static str) -> Result<(), MetricsError> {
-    let (width, height) = (img.width, img.height);
-    if img.pixels.len() as u64 != 3 * u64::from(width) * u64::from(height) {
-        return Err(MetricsError::Malformed { which, len: img.pixels.len(), width, height });
+/// Checks that the two images have the same size and that each buffer matches its size.
+fn check_shapes(a: &Image, reference: &Image) -> Result<(), MetricsError> {
+    if (a.width, a.height) != (reference.width, reference.height) {
+        return Err(MetricsError::SizeMismatch {
+            width: a.width,
+            height: a.height,
+            ref_width: reference.width,
+            ref_height: reference.height,
+        });
     }
+    for (img, which) in [(a, "image"), (reference, "reference")] {
+        if img.pixels.len() as u64 != 3 * u64::from(img.width) * u64::from(img.height) {
+            return Err(MetricsError::Malformed { which, len: img.pixels.len(), width: img.width, height: img.height });
+        }
+    }
+    Ok(())
+}
+
+/// Checks that every value is finite (the buffer already matches the size).
+fn check_finite(img: &Image, which: &'static str) -> Result<(), MetricsError> {
+    let width = img.width;
     let mut bad = img.pixels.chunks_exact(3).enumerate().filter(|(_, p)| !p.iter().all(|v| v.is_finite()));
     if let Some((first, _)) = bad.next() {
         let count = 1 + bad.count() as u64;
@@ -162,16 +177,9 @@ fn check(img: &Image, which: &'static str) -> Result<(), MetricsError> {
 
 /// Checks sizes and values of both images.
 fn check_pair(a: &Image, reference: &Image) -> Result<(), MetricsError> {
-    if (a.width, a.height) != (reference.width, reference.height) {
-        return Err(MetricsError::SizeMismatch {
-            width: a.width,
-            height: a.height,
-            ref_width: reference.width,
-            ref_height: reference.height,
-        });
-    }
-    check(a, "image")?;
-    check(reference, "reference")
+    check_shapes(a, reference)?;
+    check_finite(a, "image")?;
+    check_finite(reference, "reference")
 }
 
 /// The metrics of `a` against `reference`; the bias is measured over `region` (default: the whole image).
@@ -246,19 +254,7 @@ pub fn ramp(t: f32) -> [f32; 3] {
 /// [`ramp`]: 0 is black-purple, 1 or more is pale yellow. Linear RGB; write it as PNG with exposure 0.
 /// Non-finite pixels of `a` are not an error here: they show at the top of the ramp.
 pub fn error_image(a: &Image, reference: &Image) -> Result<Image, MetricsError> {
-    if (a.width, a.height) != (reference.width, reference.height) {
-        return Err(MetricsError::SizeMismatch {
-            width: a.width,
-            height: a.height,
-            ref_width: reference.width,
-            ref_height: reference.height,
-        });
-    }
-    for (img, which) in [(a, "image"), (reference, "reference")] {
-        if img.pixels.len() as u64 != 3 * u64::from(img.width) * u64::from(img.height) {
-            return Err(MetricsError::Malformed { which, len: img.pixels.len(), width: img.width, height: img.height });
-        }
-    }
+    check_shapes(a, reference)?;
     let mut out = Image::new(a.width, a.height);
     let pixels = out.pixels.chunks_exact_mut(3).zip(a.pixels.chunks_exact(3).zip(reference.pixels.chunks_exact(3)));
     for (o, (pa, pr)) in pixels {

@@ -150,7 +150,7 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
             };
             if keep {
                 // Store the normal on the side the photon arrived from.
-                let n = if wo.dot(hit.n) >= 0.0 { hit.n } else { -hit.n };
+                let n = hit.normal_towards(wo);
                 out.push(Photon::new(hit.p, wo, n, power, hit.object));
             }
         }
