@@ -3,6 +3,7 @@
 
 use crate::Rgb;
 use crate::camera::Camera;
+use crate::codec::{self, CodecError};
 use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
 use crate::integrator::PhotonMaps;
 use crate::light::{Light, LightSet};
@@ -13,6 +14,34 @@ use crate::scene::{Emission, GatherMode, Integrator, LightSpec, Object, RenderSe
 use crate::shapes::{Plane, Shape, Sphere, Triangle};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
+
+/// The scene blob, written from borrowed parts and read into owned ones (the same encoding).
+#[derive(Serialize)]
+struct SceneRef<'a> {
+    geometry: &'a Geometry,
+    materials: &'a [Material],
+    lights: &'a LightSet,
+}
+
+#[derive(Deserialize)]
+struct SceneOwned {
+    geometry: Geometry,
+    materials: Vec<Material>,
+    lights: LightSet,
+}
+
+/// The frame blob, borrowed and owned.
+#[derive(Serialize)]
+struct FrameRef<'a> {
+    camera: &'a Camera,
+    settings: &'a RenderSettings,
+}
+
+#[derive(Deserialize)]
+struct FrameOwned {
+    camera: Camera,
+    settings: RenderSettings,
+}
 
 /// Everything a worker needs to render any pixel of a scene.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -32,8 +61,29 @@ pub struct Prepared {
 }
 
 impl Prepared {
-    /// Loads meshes, builds the BVH and the lights of a validated scene. `scene_path` names the scene in errors.
+    /// Loads meshes, builds the BVH, the lights and the photon maps the method needs, for a validated scene.
+    /// `scene_path` names the scene in errors.
     pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
+        let mut prep = Self::without_photons(scene, scene_path)?;
+        prep.photons = prep.photon_maps_if_needed(scene_path)?;
+        Ok(prep)
+    }
+
+    /// The photon maps the method needs (`None` for methods without maps, and for progressive photon mapping,
+    /// which traces its own photons pass by pass).
+    pub fn photon_maps_if_needed(&self, scene_path: &std::path::Path) -> Result<Option<PhotonMaps>, SceneError> {
+        if !self.settings.integrator.needs_photon_maps() {
+            return Ok(None);
+        }
+        self.build_photon_maps().map(Some).map_err(|message| SceneError::Invalid {
+            path: scene_path.into(),
+            field: "render.photons".into(),
+            message,
+        })
+    }
+
+    /// Like [`Prepared::new`], without photon maps: meshes, BVH, materials and lights only.
+    pub fn without_photons(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
         let names: Vec<&String> = scene.materials.keys().collect();
         let materials: Vec<Material> = scene.materials.values().cloned().collect();
         let material_index = |name: &str, field: String| -> Result<u32, SceneError> {
@@ -141,22 +191,44 @@ impl Prepared {
         for (p, l) in geometry.prims.iter_mut().zip(light_of_prim) {
             p.light = l;
         }
-        let mut prep = Self {
+        Ok(Self {
             camera: Camera::new(&scene.camera),
             geometry,
             materials,
             lights: LightSet::new(lights),
             settings: scene.render.clone(),
             photons: None,
-        };
-        if prep.settings.integrator.needs_photon_maps() {
-            prep.photons = Some(prep.build_photon_maps().map_err(|message| SceneError::Invalid {
-                path: scene_path.into(),
-                field: "render.photons".into(),
-                message,
-            })?);
-        }
-        Ok(prep)
+        })
+    }
+
+    /// The scene blob: geometry with its BVH, materials and lights (what stays the same from frame to frame).
+    pub fn encode_scene(&self) -> Result<Vec<u8>, CodecError> {
+        codec::encode(&SceneRef { geometry: &self.geometry, materials: &self.materials, lights: &self.lights })
+    }
+
+    /// The photons blob, when there are photon maps.
+    pub fn encode_photons(&self) -> Result<Option<Vec<u8>>, CodecError> {
+        self.photons.as_ref().map(codec::encode).transpose()
+    }
+
+    /// The frame blob: camera and render settings (small; it travels with every strip request).
+    pub fn encode_frame(&self) -> Result<Vec<u8>, CodecError> {
+        codec::encode(&FrameRef { camera: &self.camera, settings: &self.settings })
+    }
+
+    /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes.
+    pub fn from_blobs(scene: &[u8], photons: Option<&[u8]>, frame: &[u8], limit: usize) -> Result<Self, CodecError> {
+        let s: SceneOwned = codec::decode(scene, limit)?;
+        let f: FrameOwned = codec::decode(frame, limit)?;
+        let photons = photons.map(|p| codec::decode(p, limit)).transpose()?;
+        Ok(Self {
+            camera: f.camera,
+            geometry: s.geometry,
+            materials: s.materials,
+            lights: s.lights,
+            settings: f.settings,
+            photons,
+        })
     }
 
     /// The gather radius in scene units: `render.photons.radius`, or 2% of the diagonal of the bounding box of

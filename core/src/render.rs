@@ -16,6 +16,8 @@ use crate::scene::RenderSettings;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, OnceLock};
 
 /// A rendered strip: linear RGB radiance of rows `rows`, row-major, 3 floats per pixel.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,29 +37,101 @@ pub fn render_strip(
     settings: &RenderSettings,
     progress: &(dyn Fn(u32) + Sync),
 ) -> Strip {
+    let passes = PassMaps::new(settings, 0);
+    let never_cancel = |n| {
+        progress(n);
+        true
+    };
+    let Some(strip) = render_strip_with(prep, rows, settings, &passes, &never_cancel) else {
+        unreachable!("a render whose progress callback never cancels always finishes")
+    };
+    strip
+}
+
+/// Renders rows `rows` of the image, sharing progressive photon passes through `passes`. `progress` is called
+/// with the number of rows finished so far and returns `false` to cancel; a cancelled render returns `None`
+/// soon after (rows already started finish first).
+pub fn render_strip_with(
+    prep: &Prepared,
+    rows: Range<u32>,
+    settings: &RenderSettings,
+    passes: &PassMaps,
+    progress: &(dyn Fn(u32) -> bool + Sync),
+) -> Option<Strip> {
     if settings.integrator == Integrator::Progressive {
-        return render_strip_progressive(prep, rows, settings, progress);
+        return render_strip_progressive(prep, rows, settings, passes, progress);
     }
     let width = prep.camera.width;
-    let done = std::sync::atomic::AtomicU32::new(0);
+    let done = AtomicU32::new(0);
+    let cancelled = AtomicBool::new(false);
     let per_row: Vec<(Vec<f32>, u64)> = rows
         .clone()
         .into_par_iter()
         .map(|y| {
+            if cancelled.load(Ordering::Relaxed) {
+                return (Vec::new(), 0);
+            }
             let mut out = Vec::with_capacity(3 * width as usize);
             let mut rays = 0u64;
             for x in 0..width {
                 let c = render_pixel(prep, settings, x, y, &mut rays);
                 out.extend_from_slice(&[c.x, c.y, c.z]);
             }
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n);
+            let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+            if !progress(n) {
+                cancelled.store(true, Ordering::Relaxed);
+            }
             (out, rays)
         })
         .collect();
+    if cancelled.load(Ordering::Relaxed) {
+        return None;
+    }
     let rays = per_row.iter().map(|r| r.1).sum();
     let pixels = per_row.into_iter().flat_map(|r| r.0).collect();
-    Strip { rows, pixels, rays }
+    Some(Strip { rows, pixels, rays })
+}
+
+/// The photon maps of progressive photon mapping's passes, traced once per job and shared by all the strips a
+/// process renders of it, or traced again for every strip when they would not fit the memory budget. A pass's
+/// map depends only on the prepared scene, the settings and the pass index, so sharing it changes no pixel.
+pub struct PassMaps {
+    /// One slot per pass when shared; empty when every strip traces its own.
+    maps: Vec<OnceLock<Option<Arc<PhotonMap>>>>,
+}
+
+impl PassMaps {
+    /// Bytes a stored photon takes with its share of the kd-tree (measured: docs/RESULTS.md, "Photon map").
+    const BYTES_PER_PHOTON: u64 = 64;
+
+    /// Shares the passes of `settings` when the method is progressive and all their maps fit in `budget` bytes
+    /// (with up to two stored photons per path); `budget` 0 never shares.
+    pub fn new(settings: &RenderSettings, budget: u64) -> Self {
+        let ph = &settings.photons;
+        let bytes = u64::from(ph.passes) * u64::from(ph.pass_photons) * 2 * Self::BYTES_PER_PHOTON;
+        let share = settings.integrator == Integrator::Progressive && bytes <= budget;
+        let n = if share { ph.passes as usize } else { 0 };
+        Self { maps: (0..n).map(|_| OnceLock::new()).collect() }
+    }
+
+    /// Whether the passes are shared between strips.
+    pub fn shared(&self) -> bool {
+        !self.maps.is_empty()
+    }
+
+    /// The photon map of `pass`, traced on first use. `None` when it cannot be built (no photon was stored).
+    fn get(&self, prep: &Prepared, settings: &RenderSettings, pass: u32) -> Option<Arc<PhotonMap>> {
+        let trace = || {
+            let n = u64::from(settings.photons.pass_photons);
+            let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
+            // Traced photons lie on surfaces and are finite; a map that cannot be built contributes nothing.
+            PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok().map(Arc::new)
+        };
+        match self.maps.get(pass as usize) {
+            Some(slot) => slot.get_or_init(trace).clone(),
+            None => trace(),
+        }
+    }
 }
 
 /// The mean radiance of pixel `(x, y)` over `settings.spp` samples. Non-finite samples (which a correct
@@ -131,8 +205,9 @@ fn render_strip_progressive(
     prep: &Prepared,
     rows: Range<u32>,
     settings: &RenderSettings,
-    progress: &(dyn Fn(u32) + Sync),
-) -> Strip {
+    pass_maps: &PassMaps,
+    progress: &(dyn Fn(u32) -> bool + Sync),
+) -> Option<Strip> {
     let ph = &settings.photons;
     let width = prep.camera.width as usize;
     let passes = ph.passes.max(1);
@@ -147,9 +222,7 @@ fn render_strip_progressive(
     let mut rays = 0u64;
     let rows_n = rows.len() as u64;
     for pass in 0..passes {
-        let traced = trace_photons(prep, u64::from(ph.pass_photons), u64::from(pass) + 2, PhotonKind::Indirect);
-        // Traced photons lie on surfaces and are finite; a map that cannot be built contributes nothing.
-        let map = PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok();
+        let map = pass_maps.get(prep, settings, pass);
         let pass_rays: u64 = stats
             .par_chunks_mut(width)
             .zip(rows.clone().into_par_iter())
@@ -185,7 +258,9 @@ fn render_strip_progressive(
             })
             .sum();
         rays += pass_rays;
-        progress(((u64::from(pass) + 1) * rows_n / u64::from(passes)) as u32);
+        if !progress(((u64::from(pass) + 1) * rows_n / u64::from(passes)) as u32) {
+            return None;
+        }
     }
     let inv_passes = 1.0 / passes as f32;
     let pixels = stats
@@ -195,7 +270,7 @@ fn render_strip_progressive(
             c.to_array()
         })
         .collect();
-    Strip { rows, pixels, rays }
+    Some(Strip { rows, pixels, rays })
 }
 
 fn finite_or_zero(c: Rgb) -> Rgb {

@@ -1,1 +1,160 @@
-//! photon-proto: the wire protocol between coordinator and workers (render.proto, generated code, conversions).
+//! photon-proto: the wire protocol between coordinator and workers.
+//!
+//! `render.proto` (in this crate's folder) is the contract; [`pb`] is the code tonic and prost generate from it
+//! at build time (with protox, so no `protoc` is needed). Around it this crate keeps what both ends must agree
+//! on: the protocol version and the build id, blob ids, the strip checksum, the pixel encoding, the token
+//! header, and the transport settings, each in one place.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+use std::time::Duration;
+
+/// The generated messages, client and server.
+#[allow(missing_docs, clippy::all, clippy::pedantic)]
+pub mod pb {
+    tonic::include_proto!("photon.v1");
+}
+
+/// Version of the protocol; raise it with every incompatible change of `render.proto` or of its meaning.
+pub const PROTOCOL_VERSION: u32 = 1;
+
+/// A hash of the code that decides what a worker renders and how it speaks (core, proto, worker and the locked
+/// dependencies): coordinator and workers must have the same one.
+pub const BUILD_ID: &str = env!("PHOTON_BUILD_ID");
+
+/// The crate version, for people reading reports.
+pub const CRATE_VERSION: &str = env!("CARGO_PKG_VERSION");
+
+/// The largest chunk of a `PutBlob` stream and of a strip's pixel rows, in bytes.
+pub const MAX_CHUNK: usize = 1 << 20;
+
+/// The largest gRPC message either end decodes: a chunk plus the message's own fields.
+pub const MAX_MESSAGE: usize = MAX_CHUNK + (64 << 10);
+
+/// The metadata key of the shared token: `authorization: Bearer <token>`.
+pub const TOKEN_KEY: &str = "authorization";
+
+/// The id of a blob: the lowercase hex BLAKE3 hash of its bytes (64 characters).
+pub fn blob_id(bytes: &[u8]) -> String {
+    blake3::hash(bytes).to_hex().to_string()
+}
+
+/// Whether `id` has the form of a blob id (64 lowercase hex digits).
+pub fn is_blob_id(id: &str) -> bool {
+    id.len() == 64 && id.bytes().all(|b| b.is_ascii_digit() || (b'a'..=b'f').contains(&b))
+}
+
+/// An incremental hash, for blobs that arrive in chunks and for strip checksums.
+pub type Hasher = blake3::Hasher;
+
+/// The checksum of a strip: BLAKE3 of its pixel bytes in order.
+pub fn checksum(bytes: &[u8]) -> [u8; 32] {
+    *blake3::hash(bytes).as_bytes()
+}
+
+/// Linear RGB pixels as little-endian bytes, 4 per float.
+pub fn pixels_to_bytes(pixels: &[f32]) -> Vec<u8> {
+    pixels.iter().flat_map(|v| v.to_le_bytes()).collect()
+}
+
+/// Little-endian bytes back to floats; `None` when the length is not a multiple of 4.
+pub fn bytes_to_pixels(bytes: &[u8]) -> Option<Vec<f32>> {
+    let chunks = bytes.chunks_exact(4);
+    if !chunks.remainder().is_empty() {
+        return None;
+    }
+    Some(chunks.map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
+}
+
+/// The value of the token metadata for `token`.
+pub fn bearer(token: &str) -> String {
+    format!("Bearer {token}")
+}
+
+/// Reads a shared token from a file: its content without surrounding white space; it must not be empty and must
+/// be printable ASCII (it travels in an HTTP/2 header).
+pub fn read_token(path: &std::path::Path) -> Result<String, String> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| format!("cannot read the token file {}: {e}", path.display()))?;
+    let token = text.trim();
+    if token.is_empty() {
+        return Err(format!("the token file {} is empty", path.display()));
+    }
+    if !token.bytes().all(|b| b.is_ascii_graphic()) {
+        return Err(format!("the token in {} must be printable ASCII without spaces", path.display()));
+    }
+    Ok(token.to_owned())
+}
+
+/// Compares two tokens in time that does not depend on where they differ.
+pub fn tokens_match(a: &str, b: &str) -> bool {
+    a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Transport settings, all in one place: HTTP/2 keep-alive pings find a dead peer whose connection the kernel
+/// still believes open (a machine that lost power), and TCP_NODELAY keeps small strip requests from waiting.
+pub mod transport {
+    use super::*;
+
+    /// How often an idle connection is pinged.
+    pub const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(10);
+    /// How long a ping may go unanswered before the connection is declared dead.
+    pub const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(20);
+    /// How long the coordinator waits for a worker's TCP connection.
+    pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
+
+    /// A client endpoint for a worker at `uri` (`http://host:port`).
+    pub fn endpoint(uri: &str) -> Result<tonic::transport::Endpoint, tonic::transport::Error> {
+        Ok(tonic::transport::Endpoint::from_shared(uri.to_owned())?
+            .connect_timeout(CONNECT_TIMEOUT)
+            .tcp_nodelay(true)
+            .http2_keep_alive_interval(KEEPALIVE_INTERVAL)
+            .keep_alive_timeout(KEEPALIVE_TIMEOUT)
+            .keep_alive_while_idle(true))
+    }
+
+    /// A server builder with the same settings.
+    pub fn server() -> tonic::transport::Server {
+        tonic::transport::Server::builder()
+            .tcp_nodelay(true)
+            .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
+            .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blob_ids_are_hex_blake3() {
+        let id = blob_id(b"photon");
+        assert!(is_blob_id(&id), "{id}");
+        assert_ne!(id, blob_id(b"photon "));
+        assert!(!is_blob_id("ABC"));
+        assert!(!is_blob_id(&id.to_uppercase()));
+        let mut h = Hasher::new();
+        h.update(b"pho");
+        h.update(b"ton");
+        assert_eq!(h.finalize().to_hex().as_str(), id);
+    }
+
+    #[test]
+    fn pixels_round_trip() {
+        let v = [0.0f32, -1.5, f32::MAX, f32::MIN_POSITIVE, 3.25];
+        assert_eq!(bytes_to_pixels(&pixels_to_bytes(&v)).unwrap(), v);
+        assert!(bytes_to_pixels(&[0; 5]).is_none());
+    }
+
+    #[test]
+    fn tokens() {
+        assert!(tokens_match("s3cret", "s3cret"));
+        assert!(!tokens_match("s3cret", "s3cres"));
+        assert!(!tokens_match("s3cret", "s3cret!"));
+    }
+
+    #[test]
+    fn build_id_is_set() {
+        assert_eq!(BUILD_ID.len(), 16);
+    }
+}

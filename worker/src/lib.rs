@@ -1,1 +1,453 @@
-//! photon-worker: renders strips of a prepared scene.
+//! photon-worker: a gRPC server that renders strips of prepared scenes on all its cores.
+//!
+//! The coordinator introduces itself ([`Hello`](photon_proto::pb::HelloRequest): the protocol version and build
+//! id must equal this worker's), uploads the blobs the worker lacks, then asks for strips. Blobs live in a
+//! bounded, content-addressed cache ([`cache`]) in memory and optionally on disk, so a second render of the same
+//! scene ships nothing. A strip renders on the worker's rayon pool, one strip at a time, off the async runtime;
+//! a few more may wait ([`Config::max_queue`]), beyond that a request is refused as `RESOURCE_EXHAUSTED`.
+//!
+//! Everything a peer sends is checked before it is used, and a bad request gets a gRPC status that says what
+//! was wrong; the worker keeps serving: another protocol or build (`FAILED_PRECONDITION`), a wrong or missing
+//! token (`UNAUTHENTICATED`), a blob larger than [`Config::max_blob_bytes`] (`RESOURCE_EXHAUSTED`), a truncated
+//! or overlong upload (`INVALID_ARGUMENT`), bytes that do not hash to their id (`DATA_LOSS`), an unknown blob
+//! (`NOT_FOUND`), rows outside the image (`OUT_OF_RANGE`), blobs that do not decode (`INVALID_ARGUMENT`).
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod cache;
+
+use cache::BlobCache;
+use photon_core::prepare::Prepared;
+use photon_core::render::{PassMaps, render_strip_with};
+use photon_proto::pb::render_server::{Render, RenderServer};
+use photon_proto::pb::{self, strip_event::Event};
+use photon_proto::{MAX_CHUNK, MAX_MESSAGE};
+use std::future::Future;
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use tokio::sync::{Semaphore, mpsc};
+use tokio_stream::wrappers::{ReceiverStream, TcpListenerStream};
+use tonic::{Request, Response, Status, Streaming};
+
+/// A worker's settings.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// Render threads (`None`: all logical cores).
+    pub threads: Option<usize>,
+    /// The shared token every call must carry, when set.
+    pub token: Option<String>,
+    /// Bytes of blobs kept in memory.
+    pub memory_cache_bytes: u64,
+    /// A folder that keeps blobs across restarts, and its size cap in bytes.
+    pub disk_cache: Option<(PathBuf, u64)>,
+    /// The largest blob accepted, in bytes.
+    pub max_blob_bytes: u64,
+    /// Strip requests that may wait behind the one rendering.
+    pub max_queue: usize,
+    /// Memory for sharing progressive photon passes between the strips of one job, in bytes.
+    pub pass_budget_bytes: u64,
+    /// The build id this worker claims (the real one unless a test pretends otherwise).
+    pub build_id: String,
+    /// Test-only fault injection.
+    pub fault: Fault,
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Self {
+            threads: None,
+            token: None,
+            memory_cache_bytes: 4 << 30,
+            disk_cache: None,
+            max_blob_bytes: 4 << 30,
+            max_queue: 4,
+            pass_budget_bytes: 2 << 30,
+            build_id: photon_proto::BUILD_ID.to_owned(),
+            fault: Fault::None,
+        }
+    }
+}
+
+/// Faults a test can make a worker commit, to prove the coordinator catches them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Fault {
+    /// Behave.
+    #[default]
+    None,
+    /// Change one pixel of each of the first `n` strips after computing their checksum, as a bit flip in
+    /// memory or on the wire would.
+    CorruptPixels(u32),
+}
+
+/// The decoded scene of one job, with its shared progressive passes.
+struct Job {
+    key: [String; 3],
+    prep: Prepared,
+    passes: PassMaps,
+}
+
+/// The render service.
+pub struct Worker {
+    config: Config,
+    pool: Arc<rayon::ThreadPool>,
+    blobs: Arc<BlobCache>,
+    /// The most recently used decoded jobs (at most [`Worker::JOBS_KEPT`]).
+    jobs: Arc<Mutex<Vec<Arc<Job>>>>,
+    /// One strip renders at a time: it has all the cores.
+    render_slot: Arc<Semaphore>,
+    /// Uploads in progress at once (each may hold up to `max_blob_bytes`).
+    upload_slots: Arc<Semaphore>,
+    waiting: Arc<AtomicUsize>,
+    corrupt_left: Arc<AtomicU32>,
+}
+
+impl Worker {
+    const JOBS_KEPT: usize = 2;
+
+    /// A worker with `config`; starts its thread pool and opens its disk cache.
+    pub fn new(config: Config) -> Result<Self, String> {
+        let mut pool = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("photon-render-{i}"));
+        if let Some(n) = config.threads {
+            pool = pool.num_threads(n);
+        }
+        let pool = pool.build().map_err(|e| format!("cannot start the render threads: {e}"))?;
+        let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
+        let corrupt = match config.fault {
+            Fault::CorruptPixels(n) => n,
+            Fault::None => 0,
+        };
+        Ok(Self {
+            pool: Arc::new(pool),
+            blobs: Arc::new(blobs),
+            jobs: Arc::new(Mutex::new(Vec::new())),
+            render_slot: Arc::new(Semaphore::new(1)),
+            upload_slots: Arc::new(Semaphore::new(2)),
+            waiting: Arc::new(AtomicUsize::new(0)),
+            corrupt_left: Arc::new(AtomicU32::new(corrupt)),
+            config,
+        })
+    }
+
+    /// Threads the worker renders with.
+    pub fn threads(&self) -> usize {
+        self.pool.current_num_threads()
+    }
+
+    /// The blob cache (the coordinator's in-process worker reads its statistics).
+    pub fn blobs(&self) -> &Arc<BlobCache> {
+        &self.blobs
+    }
+}
+
+/// Serves `worker` on `listener` until `shutdown` resolves; strips in progress are cancelled then.
+pub async fn serve(
+    worker: Worker,
+    listener: tokio::net::TcpListener,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> Result<(), tonic::transport::Error> {
+    let token = worker.config.token.clone();
+    let (health, health_service) = tonic_health::server::health_reporter();
+    health.set_serving::<RenderServer<Worker>>().await;
+    let service =
+        RenderServer::new(worker).max_decoding_message_size(MAX_MESSAGE).max_encoding_message_size(MAX_MESSAGE);
+    let check = move |req: Request<()>| -> Result<Request<()>, Status> {
+        let Some(expected) = &token else { return Ok(req) };
+        let given = req.metadata().get(photon_proto::TOKEN_KEY).and_then(|v| v.to_str().ok());
+        match given.and_then(|v| v.strip_prefix("Bearer ")) {
+            Some(t) if photon_proto::tokens_match(t, expected) => Ok(req),
+            Some(_) => Err(Status::unauthenticated("wrong token: this worker's --token-file holds another one")),
+            None => Err(Status::unauthenticated("this worker requires a token (coordinator: --token-file)")),
+        }
+    };
+    photon_proto::transport::server()
+        .add_service(health_service)
+        .add_service(tonic::service::interceptor::InterceptedService::new(service, check))
+        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), shutdown)
+        .await
+}
+
+/// Physical memory in bytes from /proc/meminfo, 0 where there is none.
+fn memory_bytes() -> u64 {
+    let Ok(text) = std::fs::read_to_string("/proc/meminfo") else { return 0 };
+    text.lines()
+        .find_map(|l| l.strip_prefix("MemTotal:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        .map_or(0, |kib| kib * 1024)
+}
+
+fn hostname() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+        .map(|s| s.trim().to_owned())
+        .unwrap_or_default()
+}
+
+#[tonic::async_trait]
+impl Render for Worker {
+    async fn hello(&self, request: Request<pb::HelloRequest>) -> Result<Response<pb::HelloReply>, Status> {
+        let r = request.into_inner();
+        if r.protocol_version != photon_proto::PROTOCOL_VERSION {
+            return Err(Status::failed_precondition(format!(
+                "protocol version {} is not this worker's {}: build coordinator and workers from the same code",
+                r.protocol_version,
+                photon_proto::PROTOCOL_VERSION
+            )));
+        }
+        if r.build_id != self.config.build_id {
+            return Err(Status::failed_precondition(format!(
+                "build {} (photon {}) is not this worker's build {} (photon {}): build coordinator and workers \
+                 from the same code",
+                r.build_id,
+                r.crate_version,
+                self.config.build_id,
+                photon_proto::CRATE_VERSION
+            )));
+        }
+        Ok(Response::new(pb::HelloReply {
+            protocol_version: photon_proto::PROTOCOL_VERSION,
+            build_id: self.config.build_id.clone(),
+            crate_version: photon_proto::CRATE_VERSION.to_owned(),
+            arch: std::env::consts::ARCH.to_owned(),
+            os: std::env::consts::OS.to_owned(),
+            threads: self.threads() as u32,
+            logical_cores: std::thread::available_parallelism().map_or(1, |n| n.get() as u32),
+            memory_bytes: memory_bytes(),
+            max_blob_bytes: self.config.max_blob_bytes,
+            hostname: hostname(),
+        }))
+    }
+
+    async fn missing_blobs(
+        &self,
+        request: Request<pb::MissingBlobsRequest>,
+    ) -> Result<Response<pb::MissingBlobsReply>, Status> {
+        let ids = request.into_inner().ids;
+        if ids.len() > 1024 {
+            return Err(Status::invalid_argument(format!("{} blob ids in one request; at most 1024", ids.len())));
+        }
+        let mut missing = Vec::new();
+        for id in ids {
+            if !photon_proto::is_blob_id(&id) {
+                return Err(Status::invalid_argument(format!("`{id}` is not a blob id (64 lowercase hex digits)")));
+            }
+            if !self.blobs.contains(&id) {
+                missing.push(id);
+            }
+        }
+        Ok(Response::new(pb::MissingBlobsReply { missing }))
+    }
+
+    async fn put_blob(&self, request: Request<Streaming<pb::BlobChunk>>) -> Result<Response<pb::PutBlobReply>, Status> {
+        let mut stream = request.into_inner();
+        let Some(first) = stream.message().await? else {
+            return Err(Status::invalid_argument("empty upload: the first chunk must carry the blob's header"));
+        };
+        let Some(header) = first.header else {
+            return Err(Status::invalid_argument("the first chunk of an upload must carry the blob's header"));
+        };
+        if !photon_proto::is_blob_id(&header.id) {
+            return Err(Status::invalid_argument(format!(
+                "`{}` is not a blob id (64 lowercase hex digits)",
+                header.id
+            )));
+        }
+        if header.size > self.config.max_blob_bytes {
+            return Err(Status::resource_exhausted(format!(
+                "blob {} of {} bytes exceeds this worker's limit of {} bytes (photon-worker --max-blob-mib)",
+                header.id, header.size, self.config.max_blob_bytes
+            )));
+        }
+        if self.blobs.contains(&header.id) {
+            return Ok(Response::new(pb::PutBlobReply { stored: 0 }));
+        }
+        let _slot = self.upload_slots.acquire().await.map_err(|_| Status::unavailable("worker shutting down"))?;
+        let size = header.size as usize;
+        // Grow with what arrives rather than trusting the announced size with one allocation.
+        let mut bytes: Vec<u8> = Vec::with_capacity(size.min(64 << 20));
+        let mut hasher = photon_proto::Hasher::new();
+        let mut chunk = first.data;
+        loop {
+            if chunk.len() > MAX_CHUNK {
+                return Err(Status::invalid_argument(format!(
+                    "a chunk of {} bytes; chunks are at most {MAX_CHUNK} bytes",
+                    chunk.len()
+                )));
+            }
+            if bytes.len() + chunk.len() > size {
+                return Err(Status::invalid_argument(format!(
+                    "blob {} announced {size} bytes and sent more",
+                    header.id
+                )));
+            }
+            hasher.update(&chunk);
+            bytes.extend_from_slice(&chunk);
+            match stream.message().await? {
+                Some(next) if next.header.is_some() => {
+                    return Err(Status::invalid_argument("only the first chunk of an upload carries a header"));
+                }
+                Some(next) => chunk = next.data,
+                None => break,
+            }
+        }
+        if bytes.len() != size {
+            return Err(Status::invalid_argument(format!(
+                "blob {} truncated: {} of the announced {size} bytes arrived",
+                header.id,
+                bytes.len()
+            )));
+        }
+        let hash = hasher.finalize().to_hex().to_string();
+        if hash != header.id {
+            return Err(Status::data_loss(format!("blob {} arrived with bytes that hash to {hash}", header.id)));
+        }
+        let stored = bytes.len() as u64;
+        self.blobs.insert(header.id, Arc::new(bytes));
+        Ok(Response::new(pb::PutBlobReply { stored }))
+    }
+
+    type RenderStripStream = ReceiverStream<Result<pb::StripEvent, Status>>;
+
+    async fn render_strip(
+        &self,
+        request: Request<pb::StripRequest>,
+    ) -> Result<Response<Self::RenderStripStream>, Status> {
+        let r = request.into_inner();
+        let mut blob_ids = vec![&r.scene_blob];
+        if !r.photons_blob.is_empty() {
+            blob_ids.push(&r.photons_blob);
+        }
+        for id in &blob_ids {
+            if !self.blobs.contains(id) {
+                return Err(Status::not_found(format!("blob {id} is unknown here: upload it with PutBlob first")));
+            }
+        }
+        if r.row_start >= r.row_end {
+            return Err(Status::out_of_range(format!("empty or reversed rows {}..{}", r.row_start, r.row_end)));
+        }
+        if self.waiting.load(Ordering::Relaxed) >= self.config.max_queue {
+            return Err(Status::resource_exhausted(format!(
+                "{} strips already queued here; send fewer at once",
+                self.config.max_queue
+            )));
+        }
+        self.waiting.fetch_add(1, Ordering::Relaxed);
+        let (tx, rx) = mpsc::channel(32);
+        let ctx = StripContext {
+            pool: self.pool.clone(),
+            blobs: self.blobs.clone(),
+            jobs: self.jobs.clone(),
+            pass_budget: self.config.pass_budget_bytes,
+            corrupt_left: self.corrupt_left.clone(),
+        };
+        let slot = self.render_slot.clone();
+        let waiting = self.waiting.clone();
+        tokio::spawn(async move {
+            let permit = slot.acquire_owned().await;
+            waiting.fetch_sub(1, Ordering::Relaxed);
+            let Ok(_permit) = permit else { return };
+            if tx.is_closed() {
+                return;
+            }
+            let render_tx = tx.clone();
+            let outcome = tokio::task::spawn_blocking(move || ctx.render(&r, &render_tx)).await;
+            let events = match outcome {
+                Ok(Ok(events)) => events,
+                Ok(Err(status)) => vec![Err(status)],
+                Err(e) => vec![Err(Status::internal(format!("the render failed: {e}")))],
+            };
+            for e in events {
+                if tx.send(e).await.is_err() {
+                    break;
+                }
+            }
+        });
+        Ok(Response::new(ReceiverStream::new(rx)))
+    }
+}
+
+/// What a strip's blocking render needs from the worker.
+struct StripContext {
+    pool: Arc<rayon::ThreadPool>,
+    blobs: Arc<BlobCache>,
+    jobs: Arc<Mutex<Vec<Arc<Job>>>>,
+    pass_budget: u64,
+    corrupt_left: Arc<AtomicU32>,
+}
+
+type Event_ = Result<pb::StripEvent, Status>;
+
+impl StripContext {
+    /// The job of a request: from the cache, or decoded from its blobs.
+    fn job(&self, r: &pb::StripRequest) -> Result<Arc<Job>, Status> {
+        let key = [r.scene_blob.clone(), r.photons_blob.clone(), photon_proto::blob_id(&r.frame)];
+        let mut jobs = self.jobs.lock().map_err(|_| Status::internal("job cache poisoned"))?;
+        if let Some(i) = jobs.iter().position(|j| j.key == key) {
+            let job = jobs.remove(i);
+            jobs.push(job.clone());
+            return Ok(job);
+        }
+        let blob = |id: &str| {
+            self.blobs.get(id).ok_or_else(|| Status::not_found(format!("blob {id} was evicted; upload it again")))
+        };
+        let scene = blob(&r.scene_blob)?;
+        let photons = if r.photons_blob.is_empty() { None } else { Some(blob(&r.photons_blob)?) };
+        let prep = Prepared::from_blobs(&scene, photons.as_deref().map(Vec::as_slice), &r.frame, usize::MAX)
+            .map_err(|e| Status::invalid_argument(format!("the job's blobs do not decode: {e}")))?;
+        let passes = PassMaps::new(&prep.settings, self.pass_budget);
+        let job = Arc::new(Job { key, prep, passes });
+        jobs.push(job.clone());
+        if jobs.len() > Worker::JOBS_KEPT {
+            jobs.remove(0);
+        }
+        Ok(job)
+    }
+
+    /// Renders the strip, sending progress on `tx` as it goes; returns the pixel and summary events.
+    fn render(&self, r: &pb::StripRequest, tx: &mpsc::Sender<Event_>) -> Result<Vec<Event_>, Status> {
+        let job = self.job(r)?;
+        let (width, height) = (job.prep.camera.width, job.prep.camera.height);
+        if r.row_end > height {
+            return Err(Status::out_of_range(format!(
+                "rows {}..{} are outside the image's {height} rows",
+                r.row_start, r.row_end
+            )));
+        }
+        let t0 = Instant::now();
+        let progress = |rows: u32| {
+            // A full channel only delays a progress report; a closed one means the coordinator left: stop.
+            let _ = tx.try_send(Ok(pb::StripEvent { event: Some(Event::RowsDone(rows)) }));
+            !tx.is_closed()
+        };
+        let prep = &job.prep;
+        let strip = self
+            .pool
+            .install(|| render_strip_with(prep, r.row_start..r.row_end, &prep.settings, &job.passes, &progress));
+        let Some(strip) = strip else {
+            return Err(Status::cancelled("the coordinator cancelled the strip"));
+        };
+        let render_seconds = t0.elapsed().as_secs_f64();
+        let mut bytes = photon_proto::pixels_to_bytes(&strip.pixels);
+        let checksum = photon_proto::checksum(&bytes).to_vec();
+        let corrupt = self.corrupt_left.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1));
+        if corrupt.is_ok() && bytes.len() >= 4 {
+            tracing::warn!(strip = r.strip, "fault injection: corrupting a pixel after the checksum");
+            bytes[0] ^= 0x40;
+        }
+        let row_bytes = 12 * width as usize;
+        let rows_per_chunk = (MAX_CHUNK / row_bytes.max(1)).max(1);
+        let mut events: Vec<Event_> = bytes
+            .chunks(rows_per_chunk * row_bytes)
+            .enumerate()
+            .map(|(i, c)| {
+                let first_row = r.row_start + (i * rows_per_chunk) as u32;
+                Ok(pb::StripEvent { event: Some(Event::Rows(pb::PixelRows { first_row, data: c.to_vec() })) })
+            })
+            .collect();
+        events.push(Ok(pb::StripEvent {
+            event: Some(Event::Done(pb::StripSummary { checksum, rays: strip.rays, render_seconds })),
+        }));
+        Ok(events)
+    }
+}

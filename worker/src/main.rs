@@ -1,0 +1,125 @@
+//! `photon-worker`: serves strips to a photon coordinator.
+#![forbid(unsafe_code)]
+
+use anyhow::{Context, Result, bail};
+use clap::Parser;
+use photon_worker::{Config, Fault, Worker};
+use std::io::Write;
+use std::path::PathBuf;
+
+/// A photon render worker: renders strips of prepared scenes for a coordinator, over gRPC.
+#[derive(Parser, Debug)]
+#[command(name = "photon-worker", version, about)]
+struct Cli {
+    /// Address to listen on, e.g. `0.0.0.0:7878` for a lab network or `127.0.0.1:0` for a free loopback port.
+    /// The address bound is printed on the first line of standard output.
+    #[arg(long, default_value = "127.0.0.1:7878")]
+    listen: String,
+    /// Render threads (default: all logical cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// A file holding the shared token every coordinator call must carry.
+    #[arg(long)]
+    token_file: Option<PathBuf>,
+    /// A folder that keeps received blobs across restarts.
+    #[arg(long)]
+    cache_dir: Option<PathBuf>,
+    /// Size cap of --cache-dir in MiB.
+    #[arg(long, default_value_t = 8192)]
+    cache_dir_mib: u64,
+    /// Memory for blobs in MiB (least recently used out first).
+    #[arg(long, default_value_t = 4096)]
+    cache_mib: u64,
+    /// The largest blob accepted, in MiB.
+    #[arg(long, default_value_t = 4096)]
+    max_blob_mib: u64,
+    /// Test only: claim this build id instead of the real one.
+    #[arg(long, hide = true)]
+    test_build_id: Option<String>,
+    /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
+    #[arg(long, hide = true, value_name = "N")]
+    test_corrupt_strips: Option<u32>,
+}
+
+fn main() {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    if let Err(e) = run(Cli::parse()) {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    if cli.threads == Some(0) {
+        bail!("--threads must be at least 1");
+    }
+    let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
+    let mut config = Config {
+        threads: cli.threads,
+        token,
+        memory_cache_bytes: cli.cache_mib << 20,
+        disk_cache: cli.cache_dir.map(|d| (d, cli.cache_dir_mib << 20)),
+        max_blob_bytes: cli.max_blob_mib << 20,
+        ..Config::default()
+    };
+    if let Some(id) = cli.test_build_id {
+        config.build_id = id;
+    }
+    if let Some(n) = cli.test_corrupt_strips {
+        config.fault = Fault::CorruptPixels(n);
+    }
+    let worker = Worker::new(config).map_err(anyhow::Error::msg)?;
+    let threads = worker.threads();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    runtime.block_on(async move {
+        let listener = tokio::net::TcpListener::bind(&cli.listen)
+            .await
+            .with_context(|| format!("cannot listen on {}", cli.listen))?;
+        let addr = listener.local_addr().context("reading the bound address")?;
+        // The first line of standard output names the address: scripts and tests that asked for port 0 read it.
+        println!("photon-worker listening on {addr}");
+        std::io::stdout().flush().context("writing to standard output")?;
+        tracing::info!(
+            %addr, threads, build = photon_proto::BUILD_ID, version = photon_proto::CRATE_VERSION, "serving"
+        );
+        photon_worker::serve(worker, listener, shutdown_signal()).await.context("serving")?;
+        tracing::info!("stopped");
+        Ok(())
+    })
+}
+
+/// Resolves on SIGTERM or Ctrl-C.
+async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(e) => {
+                tracing::warn!("cannot watch SIGTERM: {e}");
+                std::future::pending::<()>().await;
+            }
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {}
+        () = term => {}
+    }
+    tracing::info!("shutting down");
+}
