@@ -2,9 +2,14 @@
 //!
 //! [`scheduler`] decides which worker renders which strip of rows. It is a pure state machine (no clock, no
 //! network, no async): the caller feeds it events with the time they happened and acts on what it returns, so
-//! every policy decision can be replayed in a unit test.
+//! every policy decision can be replayed in a unit test. [`farm`] is that caller: it talks to the workers over
+//! gRPC, ships blobs, validates strips and assembles the image. [`fleet`] finds the workers: a host list, an
+//! address list, worker processes on loopback, or a worker server inside this process (the default, so a
+//! render on one machine takes the same path as one on many). [`sweep`] charts error against time.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod farm;
+pub mod fleet;
 pub mod scheduler;
 pub mod sweep;

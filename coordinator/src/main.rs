@@ -3,8 +3,8 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use indicatif::{ProgressBar, ProgressStyle};
 use photon_coordinator::sweep::{self, sig};
+use photon_coordinator::{farm, fleet};
 use photon_core::image_io::{Format, Image};
 use photon_core::metrics::{self, Metrics, Region};
 use photon_core::prepare::Prepared;
@@ -73,6 +73,24 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
+    /// Render on the workers of a host list (TOML: `[[worker]]` tables with `address` and an optional `name`).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["workers", "local"])]
+    hosts: Option<PathBuf>,
+    /// Render on these workers, e.g. `lab-01:7878,lab-02:7878`.
+    #[arg(long, value_name = "HOST:PORT,...", conflicts_with = "local")]
+    workers: Option<String>,
+    /// Start N `photon-worker` processes on loopback (sharing this machine's cores) and render on them.
+    #[arg(long, value_name = "N")]
+    local: Option<usize>,
+    /// A file holding the shared token the workers require.
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
+    /// Continue an interrupted render from the partial file it left (`OUTPUT.partial`).
+    #[arg(long, value_name = "FILE")]
+    resume: Option<PathBuf>,
+    /// Rows per strip (default: about 16 strips per worker, at most 64 rows).
+    #[arg(long, value_name = "N")]
+    rows_per_strip: Option<u32>,
 }
 
 #[derive(clap::Args, Debug)]
@@ -189,6 +207,9 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("starting the thread pool")?;
     }
+    if args.local == Some(0) || args.rows_per_strip == Some(0) {
+        bail!("--local and --rows-per-strip must be at least 1");
+    }
     let t0 = Instant::now();
     let mut scene = Scene::load_with(&args.scene, &args.set)?;
     if let Some((w, h)) = args.size {
@@ -225,37 +246,165 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         s.photons.passes = p;
     }
+    // Where the workers are, and the token they want.
+    let (remote, hosts_token) = match (&args.hosts, &args.workers) {
+        (Some(path), _) => {
+            let (w, t) = fleet::read_hosts(path).map_err(anyhow::Error::msg)?;
+            (Some(w), t)
+        }
+        (None, Some(list)) => (Some(fleet::parse_workers(list).map_err(anyhow::Error::msg)?), None),
+        (None, None) => (None, None),
+    };
+    let token_file = args.token_file.clone().or(hosts_token);
+    let token = token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
+    let resume = match &args.resume {
+        Some(path) => {
+            let bytes = std::fs::read(path).with_context(|| format!("reading the partial file {}", path.display()))?;
+            let p: farm::Partial = photon_core::codec::decode(&bytes, bytes.len())
+                .with_context(|| format!("{} is not a partial render", path.display()))?;
+            Some(p)
+        }
+        None => None,
+    };
+
     let prep = Prepared::new(&scene, &args.scene)?;
-    let prepare_s = t0.elapsed().as_secs_f64();
-    tracing::info!(primitives = prep.geometry.prims.len(), lights = prep.lights.lights.len(), prepare_s, "prepared");
     let (width, height) = (prep.camera.width, prep.camera.height);
-    let bar = if args.quiet { ProgressBar::hidden() } else { ProgressBar::new(u64::from(height)) };
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} rows ({eta} left)")
-            .context("progress bar template")?,
+    let job = farm::Job::new(
+        prep.encode_scene().context("encoding the scene")?,
+        prep.encode_photons().context("encoding the photon maps")?,
+        prep.encode_frame().context("encoding the frame")?,
+        width,
+        height,
     );
-    let t1 = Instant::now();
     let settings = prep.settings.clone();
-    let strip = photon_core::render::render_image(&prep, &settings, &|n| bar.set_position(u64::from(n)));
-    bar.finish_and_clear();
-    let render_s = t1.elapsed().as_secs_f64();
-    let image = Image { width, height, pixels: strip.pixels };
+    drop(prep);
+    let prepare_s = t0.elapsed().as_secs_f64();
+    tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
+
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the async runtime")?;
+    let options = farm::Options {
+        token,
+        rows_per_strip: args.rows_per_strip,
+        policy: Default::default(),
+        resume,
+        progress: !args.quiet,
+    };
+    let outcome = runtime.block_on(async {
+        let (_in_process, local, addrs) = match (remote, args.local) {
+            (Some(addrs), _) => (None, None, addrs),
+            (None, Some(n)) => {
+                let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
+                let local =
+                    fleet::LocalWorkers::start(n, threads, token_file.as_deref()).await.map_err(anyhow::Error::msg)?;
+                let addrs = local.addrs.clone();
+                (None, Some(local), addrs)
+            }
+            (None, None) => {
+                let w = fleet::InProcess::start(args.threads).await.map_err(anyhow::Error::msg)?;
+                let addrs = vec![w.addr.clone()];
+                (Some(w), None, addrs)
+            }
+        };
+        let outcome = farm::render(&job, &addrs, options).await;
+        if let Some(l) = local {
+            l.stop().await;
+        }
+        anyhow::Ok(outcome)
+    })?;
+    let outcome = match outcome {
+        Ok(o) => o,
+        Err(e) => {
+            if let Some(partial) = e.partial() {
+                let path = partial_path(&args.output);
+                let done = partial.strips.len();
+                let bytes = photon_core::codec::encode(partial).context("encoding the partial render")?;
+                std::fs::write(&path, bytes).with_context(|| format!("writing {}", path.display()))?;
+                if let farm::FarmError::NoWorkers { workers, .. } | farm::FarmError::Fatal { workers, .. } = &e {
+                    print_workers(workers);
+                }
+                bail!(
+                    "{e}\n{done} finished strips are in {}; continue with the same command and `--resume {}`",
+                    path.display(),
+                    path.display()
+                );
+            }
+            return Err(e.into());
+        }
+    };
+    let t_assemble = Instant::now();
+    let image = Image { width, height, pixels: outcome.pixels };
     image.write(&args.output, settings.exposure)?;
+    if let Some(p) = &args.resume
+        && *p == partial_path(&args.output)
+    {
+        let _ = std::fs::remove_file(p);
+    }
+    let assemble_s = t_assemble.elapsed().as_secs_f64();
+    if outcome.workers.len() > 1 || args.hosts.is_some() || args.workers.is_some() || args.local.is_some() {
+        print_workers(&outcome.workers);
+    }
     // Progressive photon mapping takes one camera sample per pass; the others take `spp`.
     let samples = if settings.integrator == Integrator::Progressive {
         format!("{} passes of {} photon paths", settings.photons.passes, settings.photons.pass_photons)
     } else {
         format!("{} spp", settings.spp)
     };
+    let resumed = if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
     println!(
-        "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare), {:.2} Mrays/s",
+        "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare, {:.2} s ship, {:.2} s assemble), \
+         {:.2} Mrays/s, {} blob bytes shipped{resumed}",
         args.output.display(),
         settings.integrator,
-        render_s,
+        outcome.render_s,
         prepare_s,
-        strip.rays as f64 / render_s / 1e6
+        outcome.ship_s,
+        assemble_s,
+        outcome.rays as f64 / outcome.render_s.max(1e-9) / 1e6,
+        outcome.workers.iter().map(|w| w.shipped_bytes).sum::<u64>()
     );
     Ok(())
+}
+
+/// Where an interrupted render keeps its finished strips.
+fn partial_path(output: &std::path::Path) -> PathBuf {
+    let mut p = output.as_os_str().to_owned();
+    p.push(".partial");
+    PathBuf::from(p)
+}
+
+/// The per-worker table.
+fn print_workers(workers: &[farm::WorkerReport]) {
+    println!(
+        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>8}  state",
+        "worker", "platform", "threads", "strips", "busy s", "Mpx/s", "shipped", "ship s", "failures"
+    );
+    for w in workers {
+        println!(
+            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>8}  {}",
+            w.name,
+            w.platform,
+            w.threads,
+            w.strips,
+            w.busy_s,
+            w.mpix_per_s,
+            human_bytes(w.shipped_bytes),
+            w.ship_s,
+            w.failures,
+            w.state
+        );
+    }
+}
+
+fn human_bytes(b: u64) -> String {
+    match b {
+        0..1024 => format!("{b} B"),
+        1024..1_048_576 => format!("{:.1} KiB", b as f64 / 1024.0),
+        _ => format!("{:.1} MiB", b as f64 / 1_048_576.0),
+    }
 }
 
 fn compare(args: CompareArgs) -> Result<()> {

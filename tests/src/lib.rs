@@ -1,18 +1,23 @@
 //! Helpers shared by photon's end-to-end tests, which run the binaries as a user runs them.
 //!
-//! `photon-coordinator` is another package's binary, so Cargo does not build it for these tests and
-//! `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build -p photon-coordinator` once per test process
+//! `photon-coordinator` and `photon-worker` are other packages' binaries, so Cargo does not build them for these
+//! tests and `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build -p photon-coordinator -p
+//! photon-worker` once per test process
 //! (a no-op when the binary is fresh; it builds it when missing or stale) in the profile and target folder of the
 //! running test executable, then returns `<target>/<profile>/photon-coordinator`, found from
 //! `std::env::current_exe()` (`<target>/<profile>/deps/<test>-…`).
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+use std::io::BufRead;
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Child, Command, Stdio};
 use std::sync::OnceLock;
+use std::sync::mpsc::{self, Receiver};
+use std::time::{Duration, Instant};
 
-/// The coordinator binary, built on first use. Panics (failing the test) when it cannot be built.
+/// The coordinator binary, built on first use (with the worker). Panics (failing the test) when it cannot be built.
 pub fn coordinator() -> &'static Path {
     static BIN: OnceLock<PathBuf> = OnceLock::new();
     BIN.get_or_init(|| {
@@ -29,7 +34,8 @@ pub fn coordinator() -> &'static Path {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
         let mut build = Command::new(cargo);
-        build.args(["build", "--quiet", "-p", "photon-coordinator", "--manifest-path"]).arg(&manifest);
+        build.args(["build", "--quiet", "-p", "photon-coordinator", "-p", "photon-worker", "--manifest-path"]);
+        build.arg(&manifest);
         build.arg("--target-dir").arg(target_dir);
         match profile.as_str() {
             "debug" => {}
@@ -41,7 +47,7 @@ pub fn coordinator() -> &'static Path {
             }
         }
         let status = build.status().unwrap_or_else(|e| panic!("cannot run cargo: {e}"));
-        assert!(status.success(), "`cargo build -p photon-coordinator` failed: {status}");
+        assert!(status.success(), "`cargo build -p photon-coordinator -p photon-worker` failed: {status}");
         let bin = profile_dir.join(format!("photon-coordinator{}", std::env::consts::EXE_SUFFIX));
         assert!(bin.is_file(), "{} missing after the build", bin.display());
         bin
@@ -59,4 +65,134 @@ pub fn temp_dir(suite: &str, test: &str) -> PathBuf {
 /// The workspace's `scenes` folder.
 pub fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes")
+}
+
+/// The worker binary, built with the coordinator.
+pub fn worker() -> PathBuf {
+    coordinator().with_file_name(format!("photon-worker{}", std::env::consts::EXE_SUFFIX))
+}
+
+/// A `photon-worker` process on a free loopback port, killed (SIGKILL) when dropped.
+pub struct WorkerProcess {
+    child: Child,
+    /// `127.0.0.1:PORT`.
+    pub addr: String,
+    /// Lines of its standard error (its log), as they arrive.
+    pub log: Receiver<String>,
+}
+
+impl WorkerProcess {
+    /// Starts a worker with extra arguments; panics if it does not report its address within 20 s.
+    pub fn start(args: &[&str]) -> Self {
+        let mut child = Command::new(worker())
+            .args(["--listen", "127.0.0.1:0"])
+            .args(args)
+            .env("RUST_LOG", "info")
+            .env("NO_COLOR", "1")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start photon-worker: {e}"));
+        let (tx, rx) = mpsc::channel();
+        if let Some(out) = child.stdout.take() {
+            let tx = tx.clone();
+            std::thread::spawn(move || {
+                for line in BufReader::new(out).lines().map_while(Result::ok) {
+                    let _ = tx.send(line);
+                }
+            });
+        }
+        let (log_tx, log) = mpsc::channel();
+        if let Some(err) = child.stderr.take() {
+            std::thread::spawn(move || {
+                for line in BufReader::new(err).lines().map_while(Result::ok) {
+                    let _ = log_tx.send(line);
+                }
+            });
+        }
+        let line = rx.recv_timeout(Duration::from_secs(20)).unwrap_or_else(|e| {
+            let _ = child.kill();
+            panic!("photon-worker did not report its address: {e}")
+        });
+        let addr = line
+            .strip_prefix("photon-worker listening on ")
+            .unwrap_or_else(|| panic!("unexpected first line from photon-worker: {line}"))
+            .to_owned();
+        Self { child, addr, log }
+    }
+
+    /// Waits until the worker's log has shown `n` lines containing `needle` (panics after `timeout`).
+    pub fn wait_for_log(&self, needle: &str, n: usize, timeout: Duration) {
+        let end = Instant::now() + timeout;
+        let mut seen = 0;
+        while seen < n {
+            let left = end.saturating_duration_since(Instant::now());
+            match self.log.recv_timeout(left) {
+                Ok(line) if line.contains(needle) => seen += 1,
+                Ok(_) => {}
+                Err(e) => panic!("saw `{needle}` {seen} of {n} times in the worker's log: {e}"),
+            }
+        }
+    }
+
+    /// Kills the process at once (SIGKILL on Unix), as a crash would.
+    pub fn kill(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+
+    /// Asks the process to stop (SIGTERM) and waits up to `timeout` for it; returns its exit status.
+    pub fn terminate(&mut self, timeout: Duration) -> Option<std::process::ExitStatus> {
+        let pid = self.child.id().to_string();
+        let _ = Command::new("kill").args(["-TERM", &pid]).status();
+        wait_with_timeout(&mut self.child, timeout)
+    }
+}
+
+impl Drop for WorkerProcess {
+    fn drop(&mut self) {
+        self.kill();
+    }
+}
+
+/// Waits for a child up to `timeout`; kills it and returns `None` if it is still running then.
+pub fn wait_with_timeout(child: &mut Child, timeout: Duration) -> Option<std::process::ExitStatus> {
+    let end = Instant::now() + timeout;
+    loop {
+        if let Ok(Some(status)) = child.try_wait() {
+            return Some(status);
+        }
+        if Instant::now() >= end {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Output of a command run to completion within `timeout` (panics if it runs longer).
+pub fn run_with_timeout(cmd: &mut Command, timeout: Duration) -> std::process::Output {
+    let mut child = cmd
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("cannot start {cmd:?}: {e}"));
+    // Drain the pipes on threads so a chatty child cannot block on a full pipe.
+    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            if let Some(mut r) = r {
+                let _ = r.read_to_end(&mut buf);
+            }
+            buf
+        })
+    };
+    let out = drain(child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>));
+    let err = drain(child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>));
+    let status = wait_with_timeout(&mut child, timeout)
+        .unwrap_or_else(|| panic!("{cmd:?} ran longer than {timeout:?} and was killed"));
+    let stdout = out.join().unwrap_or_default();
+    let stderr = err.join().unwrap_or_default();
+    std::process::Output { status, stdout, stderr }
 }

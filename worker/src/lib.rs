@@ -28,7 +28,7 @@ use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tokio::sync::{Semaphore, mpsc};
-use tokio_stream::wrappers::{ReceiverStream, TcpListenerStream};
+use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status, Streaming};
 
 /// A worker's settings.
@@ -164,7 +164,7 @@ pub async fn serve(
     photon_proto::transport::server()
         .add_service(health_service)
         .add_service(tonic::service::interceptor::InterceptedService::new(service, check))
-        .serve_with_incoming_shutdown(TcpListenerStream::new(listener), shutdown)
+        .serve_with_incoming_shutdown(photon_proto::transport::incoming(listener), shutdown)
         .await
 }
 
@@ -414,6 +414,7 @@ impl StripContext {
                 r.row_start, r.row_end
             )));
         }
+        tracing::info!(strip = r.strip, attempt = r.attempt, rows = ?(r.row_start..r.row_end), "rendering strip");
         let t0 = Instant::now();
         let progress = |rows: u32| {
             // A full channel only delays a progress report; a closed one means the coordinator left: stop.

@@ -1,0 +1,207 @@
+//! Where the workers come from: a host list file, an address list, worker processes started on loopback, or
+//! one worker server inside this process (the default).
+
+use crate::farm::WorkerAddr;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+use tokio::io::AsyncBufReadExt;
+
+/// A host list file:
+///
+/// ```toml
+/// # token_file = "farm.token"   # optional: the shared token, relative to this file
+/// [[worker]]
+/// address = "lab-01.example.edu:7878"
+/// name = "lab-01"               # optional: the name in reports
+/// ```
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HostsFile {
+    #[serde(default)]
+    token_file: Option<PathBuf>,
+    #[serde(default)]
+    worker: Vec<HostEntry>,
+}
+
+#[derive(Debug, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HostEntry {
+    address: String,
+    #[serde(default)]
+    name: Option<String>,
+}
+
+/// The workers of a host list and the token file it names (resolved against the list's folder).
+pub fn read_hosts(path: &Path) -> Result<(Vec<WorkerAddr>, Option<PathBuf>), String> {
+    let text =
+        std::fs::read_to_string(path).map_err(|e| format!("cannot read the host list {}: {e}", path.display()))?;
+    let hosts: HostsFile = toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    if hosts.worker.is_empty() {
+        return Err(format!("{}: no [[worker]] entries (each needs an `address = \"host:port\"`)", path.display()));
+    }
+    let mut workers = Vec::new();
+    for (i, w) in hosts.worker.iter().enumerate() {
+        check_address(&w.address).map_err(|e| format!("{}: worker[{i}].address: {e}", path.display()))?;
+        workers.push(WorkerAddr::new(&w.address, w.name.as_deref()));
+    }
+    let base = path.parent().unwrap_or(Path::new("."));
+    Ok((workers, hosts.token_file.map(|t| base.join(t))))
+}
+
+/// Workers from `a:port,b:port`.
+pub fn parse_workers(list: &str) -> Result<Vec<WorkerAddr>, String> {
+    let mut out = Vec::new();
+    for a in list.split(',').map(str::trim).filter(|a| !a.is_empty()) {
+        check_address(a).map_err(|e| format!("--workers: {e}"))?;
+        out.push(WorkerAddr::new(a, None));
+    }
+    if out.is_empty() {
+        return Err("--workers needs at least one HOST:PORT".into());
+    }
+    Ok(out)
+}
+
+/// An address must be `host:port` (optionally with an `http://` or `https://` scheme) with a numeric port.
+fn check_address(a: &str) -> Result<(), String> {
+    let rest = a.split_once("://").map_or(a, |(_, r)| r).trim_end_matches('/');
+    match rest.rsplit_once(':') {
+        Some((host, port)) if !host.is_empty() && port.parse::<u16>().is_ok() => Ok(()),
+        _ => Err(format!("`{a}` is not HOST:PORT")),
+    }
+}
+
+/// Worker processes on loopback, killed when this value drops.
+pub struct LocalWorkers {
+    children: Vec<tokio::process::Child>,
+    /// Their addresses.
+    pub addrs: Vec<WorkerAddr>,
+}
+
+impl LocalWorkers {
+    /// Starts `n` `photon-worker` processes on free loopback ports, sharing the machine's cores between them.
+    pub async fn start(n: usize, threads_total: usize, token_file: Option<&Path>) -> Result<Self, String> {
+        let bin = worker_binary()?;
+        let threads = (threads_total / n.max(1)).max(1);
+        let mut children = Vec::new();
+        let mut addrs = Vec::new();
+        for i in 0..n {
+            let mut cmd = tokio::process::Command::new(&bin);
+            cmd.args(["--listen", "127.0.0.1:0", "--threads", &threads.to_string()])
+                .stdout(std::process::Stdio::piped())
+                .stderr(std::process::Stdio::null())
+                .kill_on_drop(true);
+            if let Some(t) = token_file {
+                cmd.arg("--token-file").arg(t);
+            }
+            let mut child = cmd.spawn().map_err(|e| format!("cannot start {}: {e}", bin.display()))?;
+            let stdout = child.stdout.take().ok_or("no standard output from the worker")?;
+            let mut lines = tokio::io::BufReader::new(stdout).lines();
+            let line = tokio::time::timeout(Duration::from_secs(10), lines.next_line())
+                .await
+                .map_err(|_| format!("local worker {i} did not report its address within 10 s"))?
+                .map_err(|e| format!("reading local worker {i}'s address: {e}"))?
+                .unwrap_or_default();
+            let addr = line
+                .strip_prefix("photon-worker listening on ")
+                .ok_or_else(|| format!("local worker {i} said `{line}` instead of its address"))?;
+            addrs.push(WorkerAddr::new(addr, Some(&format!("local-{i}"))));
+            children.push(child);
+        }
+        Ok(Self { children, addrs })
+    }
+
+    /// Stops the processes.
+    pub async fn stop(mut self) {
+        for c in &mut self.children {
+            let _ = c.kill().await;
+        }
+    }
+}
+
+/// `photon-worker` next to this executable.
+fn worker_binary() -> Result<PathBuf, String> {
+    let exe = std::env::current_exe().map_err(|e| format!("cannot locate this executable: {e}"))?;
+    let bin = exe.with_file_name(format!("photon-worker{}", std::env::consts::EXE_SUFFIX));
+    if bin.is_file() {
+        Ok(bin)
+    } else {
+        Err(format!(
+            "{} is missing: --local starts worker processes from it (build it with `cargo build --release -p \
+             photon-worker`)",
+            bin.display()
+        ))
+    }
+}
+
+/// A worker server inside this process, on a free loopback port; stops when dropped.
+pub struct InProcess {
+    /// Its address.
+    pub addr: WorkerAddr,
+    stop: Option<tokio::sync::oneshot::Sender<()>>,
+}
+
+impl InProcess {
+    /// Starts it with `threads` render threads (`None`: all cores).
+    pub async fn start(threads: Option<usize>) -> Result<Self, String> {
+        let config = photon_worker::Config { threads, ..photon_worker::Config::default() };
+        let worker = photon_worker::Worker::new(config)?;
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
+            .await
+            .map_err(|e| format!("cannot open a loopback port for the in-process worker: {e}"))?;
+        let addr = listener.local_addr().map_err(|e| e.to_string())?;
+        let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
+        tokio::spawn(async move {
+            let shutdown = async {
+                let _ = stopped.await;
+            };
+            if let Err(e) = photon_worker::serve(worker, listener, shutdown).await {
+                tracing::error!("in-process worker: {e}");
+            }
+        });
+        Ok(Self { addr: WorkerAddr::new(&addr.to_string(), Some("in-process")), stop: Some(stop) })
+    }
+}
+
+impl Drop for InProcess {
+    fn drop(&mut self) {
+        if let Some(s) = self.stop.take() {
+            let _ = s.send(());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn addresses() {
+        assert!(check_address("lab-01:7878").is_ok());
+        assert!(check_address("http://10.0.0.2:7878").is_ok());
+        assert!(check_address("[::1]:7878").is_ok());
+        assert!(check_address("lab-01").is_err());
+        assert!(check_address(":7878").is_err());
+        assert!(check_address("lab-01:http").is_err());
+        let w = parse_workers("a:1, b:2").unwrap();
+        assert_eq!(w.iter().map(|w| w.uri.as_str()).collect::<Vec<_>>(), ["http://a:1", "http://b:2"]);
+        assert!(parse_workers(" , ").is_err());
+    }
+
+    #[test]
+    fn host_list_errors_name_the_file_and_field() {
+        let dir = std::env::temp_dir().join(format!("photon-hosts-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("hosts.toml");
+        std::fs::write(&p, "[[worker]]\naddress = \"a:1\"\nname = \"A\"\n[[worker]]\naddress = \"b\"\n").unwrap();
+        let e = read_hosts(&p).unwrap_err();
+        assert!(e.contains("hosts.toml") && e.contains("worker[1].address"), "{e}");
+        std::fs::write(&p, "token_file = \"t\"\n[[worker]]\naddress = \"a:1\"\nname = \"A\"\n").unwrap();
+        let (w, t) = read_hosts(&p).unwrap();
+        assert_eq!(w[0].name, "A");
+        assert_eq!(t.unwrap(), dir.join("t"));
+        std::fs::write(&p, "[[worker]]\nadress = \"a:1\"\n").unwrap();
+        let e = read_hosts(&p).unwrap_err();
+        assert!(e.contains("adress"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,205 @@
+//! Distributed rendering over loopback: worker processes on port 0, the coordinator as a user runs it.
+//!
+//! Every image is compared bit for bit with the in-process render of the same job: the farm may move strips
+//! around, retry them and race copies of them, but it may not change a pixel, lose a strip or count one twice.
+
+#![allow(clippy::unwrap_used)]
+
+use photon_core::image_io::Image;
+use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+/// A quick job with photon maps (so a photons blob is shipped too).
+const QUICK: &[&str] = &["--size", "64x48", "--spp", "4", "--integrator", "photon-map", "--photons", "20000"];
+/// A slower job cut into many strips, for killing a worker in the middle of it.
+const SLOW: &[&str] = &["--size", "128x96", "--spp", "48", "--integrator", "path", "--rows-per-strip", "3"];
+
+const LIMIT: Duration = Duration::from_secs(240);
+
+fn render(out: &Path, job: &[&str], extra: &[&str]) -> Output {
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(scenes_dir().join("cornell.toml")).arg("-o").arg(out).arg("-q").args(job).args(extra);
+    run_with_timeout(&mut cmd, LIMIT)
+}
+
+fn text(o: &Output) -> String {
+    format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn bits(path: &Path) -> Vec<u32> {
+    Image::read(path).unwrap().pixels.iter().map(|v| v.to_bits()).collect()
+}
+
+/// The in-process render of a job (made once per test process).
+fn reference(job: &'static [&'static str]) -> Vec<u32> {
+    static QUICK_REF: OnceLock<Vec<u32>> = OnceLock::new();
+    static SLOW_REF: OnceLock<Vec<u32>> = OnceLock::new();
+    let cell = if std::ptr::eq(job, QUICK) { &QUICK_REF } else { &SLOW_REF };
+    cell.get_or_init(|| {
+        let dir = temp_dir("distributed", if std::ptr::eq(job, QUICK) { "ref-quick" } else { "ref-slow" });
+        let out = dir.join("ref.exr");
+        let o = render(&out, job, &[]);
+        assert!(o.status.success(), "{}", text(&o));
+        let b = bits(&out);
+        assert!(b.iter().any(|&v| f32::from_bits(v) > 0.0));
+        b
+    })
+    .clone()
+}
+
+fn workers_arg(ws: &[&WorkerProcess]) -> String {
+    ws.iter().map(|w| w.addr.as_str()).collect::<Vec<_>>().join(",")
+}
+
+/// The summary line's count of blob bytes shipped.
+fn shipped(o: &Output) -> u64 {
+    let out = String::from_utf8_lossy(&o.stdout);
+    let words: Vec<&str> = out.split_whitespace().collect();
+    let i = words
+        .windows(4)
+        .position(|w| w[1..] == ["blob", "bytes", "shipped"] || w[1..] == ["blob", "bytes", "shipped,"]);
+    words[i.unwrap_or_else(|| panic!("no shipped count in {out}"))].parse().unwrap()
+}
+
+#[test]
+fn one_and_two_workers_give_the_in_process_bytes() {
+    let want = reference(QUICK);
+    let dir = temp_dir("distributed", "match");
+    let (a, b) = (WorkerProcess::start(&["--threads", "1"]), WorkerProcess::start(&["--threads", "1"]));
+    for (name, ws) in [("one", vec![&a]), ("two", vec![&a, &b])] {
+        let out = dir.join(format!("{name}.exr"));
+        let o = render(&out, QUICK, &["--workers", &workers_arg(&ws)]);
+        assert!(o.status.success(), "{}", text(&o));
+        assert!(bits(&out) == want, "{name} worker(s) changed pixels");
+    }
+    // --local starts its own worker processes.
+    let out = dir.join("local.exr");
+    let o = render(&out, QUICK, &["--local", "2"]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(bits(&out) == want, "--local 2 changed pixels");
+}
+
+#[test]
+fn a_killed_worker_loses_no_strip() {
+    let want = reference(SLOW);
+    let dir = temp_dir("distributed", "kill");
+    let mut victim = WorkerProcess::start(&["--threads", "1"]);
+    let survivor = WorkerProcess::start(&["--threads", "1"]);
+    let out = dir.join("out.exr");
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(scenes_dir().join("cornell.toml")).arg("-o").arg(&out).arg("-q").args(SLOW);
+    cmd.args(["--workers", &workers_arg(&[&victim, &survivor])]);
+    let handle = std::thread::spawn(move || run_with_timeout(&mut cmd, LIMIT));
+    // Kill it while it holds strips: after it has started its second one.
+    victim.wait_for_log("rendering strip", 2, LIMIT);
+    victim.kill();
+    let o = handle.join().unwrap();
+    assert!(o.status.success(), "{}", text(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let row = stdout.lines().find(|l| l.starts_with(&victim.addr)).unwrap_or_else(|| panic!("{}", text(&o)));
+    assert!(row.contains("lost"), "the killed worker should be reported lost: {}", text(&o));
+    assert!(bits(&out) == want, "the image changed after a worker was killed");
+    drop(survivor);
+}
+
+#[test]
+fn corrupted_pixels_are_caught_and_rendered_again() {
+    let want = reference(QUICK);
+    let dir = temp_dir("distributed", "corrupt");
+    let faulty = WorkerProcess::start(&["--threads", "1", "--test-corrupt-strips", "2"]);
+    let out = dir.join("out.exr");
+    let o = render(&out, QUICK, &["--workers", &faulty.addr]);
+    assert!(o.status.success(), "{}", text(&o));
+    let all = text(&o);
+    assert_eq!(all.matches("checksum mismatch").count(), 2, "{all}");
+    assert!(bits(&out) == want, "a corrupted strip reached the image");
+}
+
+#[test]
+fn refused_workers_are_skipped_with_their_reason() {
+    let want = reference(QUICK);
+    let dir = temp_dir("distributed", "refused");
+    let token = dir.join("token");
+    std::fs::write(&token, "right-token\n").unwrap();
+    let wrong = dir.join("wrong");
+    std::fs::write(&wrong, "wrong-token").unwrap();
+    let other_build = WorkerProcess::start(&["--test-build-id", "0123456789abcdef"]);
+    let other_token = WorkerProcess::start(&["--token-file", wrong.to_str().unwrap()]);
+    let good = WorkerProcess::start(&["--token-file", token.to_str().unwrap()]);
+    let out = dir.join("out.exr");
+    let ws = workers_arg(&[&other_build, &other_token, &good]);
+    let o = render(&out, QUICK, &["--workers", &ws, "--token-file", token.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("is not this worker's build 0123456789abcdef"), "{}", text(&o));
+    assert!(stderr.contains("wrong token"), "{}", text(&o));
+    assert!(bits(&out) == want);
+    // Without a token, the worker that wants one refuses too.
+    let o = render(&dir.join("none.exr"), QUICK, &["--workers", &good.addr]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("requires a token"), "{}", text(&o));
+}
+
+#[test]
+fn with_no_worker_left_the_render_stops_and_resumes() {
+    let want = reference(SLOW);
+    let dir = temp_dir("distributed", "resume");
+    let out = dir.join("out.exr");
+    let mut only = WorkerProcess::start(&["--threads", "1"]);
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(scenes_dir().join("cornell.toml")).arg("-o").arg(&out).arg("-q").args(SLOW);
+    cmd.args(["--workers", &only.addr]);
+    let handle = std::thread::spawn(move || run_with_timeout(&mut cmd, LIMIT));
+    only.wait_for_log("rendering strip", 4, LIMIT);
+    only.kill();
+    let o = handle.join().unwrap();
+    assert!(!o.status.success(), "{}", text(&o));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("no worker left"), "{}", text(&o));
+    let partial: PathBuf = dir.join("out.exr.partial");
+    assert!(partial.is_file(), "{}", text(&o));
+    assert!(!out.exists());
+    // Resume on a fresh worker: only the missing strips are rendered, and the image is the same.
+    let fresh = WorkerProcess::start(&[]);
+    let o = render(&out, SLOW, &["--workers", &fresh.addr, "--resume", partial.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", text(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let resumed: u32 = stdout
+        .split(", ")
+        .find_map(|p| p.strip_suffix(" strips resumed").or_else(|| p.trim().strip_suffix(" strips resumed")))
+        .and_then(|n| n.trim().parse().ok())
+        .unwrap_or_else(|| panic!("{}", text(&o)));
+    assert!((1..32).contains(&resumed), "{resumed} strips resumed of 32");
+    assert!(bits(&out) == want, "the resumed image differs");
+    assert!(!partial.exists(), "the partial file is removed once the image is complete");
+    // A partial file of another job is refused.
+    std::fs::write(&partial, photon_core::codec::encode(&("not", "a partial")).unwrap()).unwrap();
+    let o = render(&dir.join("x.exr"), QUICK, &["--workers", &fresh.addr, "--resume", partial.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a partial render"), "{}", text(&o));
+}
+
+#[test]
+fn a_second_render_ships_no_blob() {
+    let dir = temp_dir("distributed", "ship");
+    let w = WorkerProcess::start(&[]);
+    let first = render(&dir.join("a.exr"), QUICK, &["--workers", &w.addr]);
+    assert!(first.status.success(), "{}", text(&first));
+    let second = render(&dir.join("b.exr"), QUICK, &["--workers", &w.addr]);
+    assert!(second.status.success(), "{}", text(&second));
+    assert!(shipped(&first) > 100_000, "the photon map alone is larger: {}", text(&first));
+    assert_eq!(shipped(&second), 0, "{}", text(&second));
+    // Another exposure is another frame, not another scene nor other photons: still nothing to ship.
+    let third = render(&dir.join("c.exr"), QUICK, &["--workers", &w.addr, "--exposure", "1"]);
+    assert_eq!(shipped(&third), 0, "{}", text(&third));
+}
+
+#[test]
+fn sigterm_stops_a_worker_cleanly() {
+    let mut w = WorkerProcess::start(&[]);
+    let status = w.terminate(Duration::from_secs(20)).expect("the worker did not stop within 20 s of SIGTERM");
+    assert!(status.success(), "{status}");
+}
