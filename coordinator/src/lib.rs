@@ -5,11 +5,13 @@
 //! every policy decision can be replayed in a unit test. [`farm`] is that caller: it talks to the workers over
 //! gRPC, ships blobs, validates strips and assembles the image. [`fleet`] finds the workers: a host list, an
 //! address list, worker processes on loopback, or a worker server inside this process (the default, so a
-//! render on one machine takes the same path as one on many). [`sweep`] charts error against time.
+//! render on one machine takes the same path as one on many). [`prepared_cache`] keeps prepared blobs on disk
+//! for the next render of an unchanged scene. [`sweep`] charts error against time.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
 pub mod farm;
 pub mod fleet;
+pub mod prepared_cache;
 pub mod scheduler;
 pub mod sweep;

@@ -3,6 +3,7 @@
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use photon_coordinator::prepared_cache::{self, PreparedCache};
 use photon_coordinator::sweep::{self, sig};
 use photon_coordinator::{farm, fleet};
 use photon_core::image_io::{Format, Image};
@@ -91,6 +92,16 @@ struct RenderArgs {
     /// Rows per strip (default: about 16 strips per worker, at most 64 rows).
     #[arg(long, value_name = "N")]
     rows_per_strip: Option<u32>,
+    /// Folder of prepared blobs reused by later renders of an unchanged scene (default: $PHOTON_CACHE_DIR, else
+    /// $XDG_CACHE_HOME/photon, else ~/.cache/photon).
+    #[arg(long, value_name = "DIR")]
+    cache_dir: Option<PathBuf>,
+    /// Size cap of the prepared-blob cache in MiB (oldest entries out first).
+    #[arg(long, value_name = "MIB", default_value_t = 4096)]
+    cache_mib: u64,
+    /// Neither read nor write the prepared-blob cache.
+    #[arg(long, conflicts_with = "cache_dir")]
+    no_cache: bool,
 }
 
 #[derive(clap::Args, Debug)]
@@ -267,17 +278,13 @@ fn render(args: RenderArgs) -> Result<()> {
         None => None,
     };
 
-    let prep = Prepared::new(&scene, &args.scene)?;
-    let (width, height) = (prep.camera.width, prep.camera.height);
-    let job = farm::Job::new(
-        prep.encode_scene().context("encoding the scene")?,
-        prep.encode_photons().context("encoding the photon maps")?,
-        prep.encode_frame().context("encoding the frame")?,
-        width,
-        height,
-    );
-    let settings = prep.settings.clone();
-    drop(prep);
+    let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
+        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20).map_err(anyhow::Error::msg)?),
+        _ => None,
+    };
+    let (job, hits) = prepare_job(&scene, &args.scene, cache.as_ref())?;
+    let (width, height) = (job.width, job.height);
+    let settings = scene.render.clone();
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
 
@@ -353,7 +360,14 @@ fn render(args: RenderArgs) -> Result<()> {
     } else {
         format!("{} spp", settings.spp)
     };
-    let resumed = if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
+    let mut resumed = if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
+    if let Some(h) = hits {
+        let word = |hit: bool| if hit { "cached" } else { "built" };
+        resumed.push_str(&format!(", scene {}", word(h.scene)));
+        if settings.integrator.needs_photon_maps() {
+            resumed.push_str(&format!(", photons {}", word(h.photons)));
+        }
+    }
     println!(
         "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare, {:.2} s ship, {:.2} s assemble), \
          {:.2} Mrays/s, {} blob bytes shipped{resumed}",
@@ -367,6 +381,58 @@ fn render(args: RenderArgs) -> Result<()> {
         outcome.workers.iter().map(|w| w.shipped_bytes).sum::<u64>()
     );
     Ok(())
+}
+
+/// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes, BVH,
+/// materials, lights) and the photons blob are each read from the cache or built and stored.
+fn prepare_job(
+    scene: &Scene,
+    scene_path: &std::path::Path,
+    cache: Option<&PreparedCache>,
+) -> Result<(farm::Job, Option<prepared_cache::Hits>)> {
+    let camera = photon_core::camera::Camera::new(&scene.camera);
+    let settings = scene.render.clone();
+    let frame = Prepared::encode_frame_of(&camera, &settings).context("encoding the frame")?;
+    let (width, height) = (camera.width, camera.height);
+    let Some(cache) = cache else {
+        let prep = Prepared::new(scene, scene_path)?;
+        let scene_blob = prep.encode_scene().context("encoding the scene")?;
+        let photons = prep.encode_photons().context("encoding the photon maps")?;
+        return Ok((farm::Job::new(scene_blob, photons, frame, width, height), None));
+    };
+    let keys = PreparedCache::keys(scene).map_err(anyhow::Error::msg)?;
+    let needs_photons = settings.integrator.needs_photon_maps();
+    let cached_scene = cache.load(&keys.scene, "scene");
+    let cached_photons = if needs_photons { cache.load(&keys.photons, "photons") } else { None };
+    let hits = prepared_cache::Hits { scene: cached_scene.is_some(), photons: cached_photons.is_some() };
+    // Build what is missing; decode the cached scene only when photons must be traced in it.
+    let (scene_blob, prep) = match cached_scene {
+        Some(bytes) => (bytes, None),
+        None => {
+            let prep = Prepared::without_photons(scene, scene_path)?;
+            let bytes = prep.encode_scene().context("encoding the scene")?;
+            cache.store(&keys.scene, "scene", &bytes);
+            (bytes, Some(prep))
+        }
+    };
+    let photons = match (needs_photons, cached_photons) {
+        (false, _) => None,
+        (true, Some(bytes)) => Some(bytes),
+        (true, None) => {
+            let prep = match prep {
+                Some(p) => p,
+                None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
+                    .with_context(|| format!("decoding the cached scene in {}", cache.dir().display()))?,
+            };
+            let prep = Prepared { photons: prep.photon_maps_if_needed(scene_path)?, ..prep };
+            let bytes = prep.encode_photons().context("encoding the photon maps")?;
+            if let Some(b) = &bytes {
+                cache.store(&keys.photons, "photons", b);
+            }
+            bytes
+        }
+    };
+    Ok((farm::Job::new(scene_blob, photons, frame, width, height), Some(hits)))
 }
 
 /// Where an interrupted render keeps its finished strips.

@@ -213,7 +213,24 @@ impl Prepared {
 
     /// The frame blob: camera and render settings (small; it travels with every strip request).
     pub fn encode_frame(&self) -> Result<Vec<u8>, CodecError> {
-        codec::encode(&FrameRef { camera: &self.camera, settings: &self.settings })
+        Self::encode_frame_of(&self.camera, &self.settings)
+    }
+
+    /// The frame blob of a camera and settings.
+    pub fn encode_frame_of(camera: &Camera, settings: &RenderSettings) -> Result<Vec<u8>, CodecError> {
+        codec::encode(&FrameRef { camera, settings })
+    }
+
+    /// A prepared scene from its scene blob, a camera and settings, without photon maps.
+    pub fn from_scene_blob(
+        scene: &[u8],
+        camera: Camera,
+        settings: RenderSettings,
+        limit: usize,
+    ) -> Result<Self, CodecError> {
+        let s: SceneOwned = codec::decode(scene, limit)?;
+        let (geometry, materials, lights) = (s.geometry, s.materials, s.lights);
+        Ok(Self { camera, geometry, materials, lights, settings, photons: None })
     }
 
     /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes.

@@ -1,0 +1,205 @@
+//! The coordinator's disk cache of prepared blobs: rendering an unchanged scene again skips loading meshes,
+//! building the BVH and tracing photons.
+//!
+//! Two keys, so that changing only what photons depend on keeps the geometry:
+//! - the **scene key** hashes the build id, the scene's materials, objects and lights as parsed (after `--set`),
+//!   and the path and bytes of every file they reference (meshes);
+//! - the **photons key** hashes the scene key and the render settings except those that cannot change a photon
+//!   (samples per pixel, exposure).
+//!
+//! The camera is in neither: it travels in the frame. A changed input changes a key, and another build has
+//! another build id, so a stale entry is never read; it just ages out. Each file holds the BLAKE3 hash of its
+//! payload before the payload, and a file that does not match is deleted and rebuilt. Files are written under a
+//! temporary name and renamed, and the folder is trimmed to its cap, oldest first.
+
+use photon_core::scene::{Object, Scene};
+use std::path::{Path, PathBuf};
+
+/// Which cache entries a render used.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Hits {
+    /// The scene blob came from the cache.
+    pub scene: bool,
+    /// The photons blob came from the cache.
+    pub photons: bool,
+}
+
+/// A folder of prepared blobs.
+pub struct PreparedCache {
+    dir: PathBuf,
+    cap: u64,
+}
+
+/// The cache keys of a scene.
+pub struct Keys {
+    /// Key of the scene blob.
+    pub scene: String,
+    /// Key of the photons blob.
+    pub photons: String,
+}
+
+impl PreparedCache {
+    /// The cache in `dir`, created if missing, trimmed to `cap` bytes.
+    pub fn open(dir: PathBuf, cap: u64) -> Result<Self, String> {
+        std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create the cache folder {}: {e}", dir.display()))?;
+        Ok(Self { dir, cap })
+    }
+
+    /// The default folder: `$PHOTON_CACHE_DIR`, else `$XDG_CACHE_HOME/photon`, else `$HOME/.cache/photon`.
+    pub fn default_dir() -> Option<PathBuf> {
+        let env = |k: &str| std::env::var_os(k).filter(|v| !v.is_empty()).map(PathBuf::from);
+        env("PHOTON_CACHE_DIR")
+            .or_else(|| env("XDG_CACHE_HOME").map(|d| d.join("photon")))
+            .or_else(|| env("HOME").map(|d| d.join(".cache/photon")))
+    }
+
+    /// The keys of `scene`, reading every file it references.
+    pub fn keys(scene: &Scene) -> Result<Keys, String> {
+        let enc = |what: &str, r: Result<Vec<u8>, photon_core::codec::CodecError>| {
+            r.map_err(|e| format!("hashing the scene's {what}: {e}"))
+        };
+        let mut h = photon_proto::Hasher::new();
+        h.update(photon_proto::BUILD_ID.as_bytes());
+        h.update(&enc("materials", photon_core::codec::encode(&scene.materials))?);
+        h.update(&enc("objects", photon_core::codec::encode(&scene.objects))?);
+        h.update(&enc("lights", photon_core::codec::encode(&scene.lights))?);
+        for o in &scene.objects {
+            if let Object::Mesh { file, .. } = o {
+                let path = scene.base_dir.join(file);
+                // A file that cannot be read is left to the loader, which reports it with the scene's context.
+                let bytes = std::fs::read(&path).unwrap_or_default();
+                h.update(path.to_string_lossy().as_bytes());
+                h.update(&(bytes.len() as u64).to_le_bytes());
+                h.update(&bytes);
+            }
+        }
+        let scene_key = h.finalize().to_hex().to_string();
+        let mut settings = scene.render.clone();
+        settings.spp = 0;
+        settings.exposure = 0.0;
+        let mut h = photon_proto::Hasher::new();
+        h.update(scene_key.as_bytes());
+        h.update(&enc("settings", photon_core::codec::encode(&settings))?);
+        Ok(Keys { scene: scene_key, photons: h.finalize().to_hex().to_string() })
+    }
+
+    fn path(&self, key: &str, kind: &str) -> PathBuf {
+        self.dir.join(format!("{key}.{kind}"))
+    }
+
+    /// The cached payload, if present and intact.
+    pub fn load(&self, key: &str, kind: &str) -> Option<Vec<u8>> {
+        let path = self.path(key, kind);
+        let mut bytes = std::fs::read(&path).ok()?;
+        if bytes.len() < 32 || bytes[..32] != photon_proto::checksum(&bytes[32..]) {
+            tracing::warn!("{} is damaged; rebuilding it", path.display());
+            let _ = std::fs::remove_file(&path);
+            return None;
+        }
+        // Mark it used, so trimming removes the least recently used first.
+        if let Ok(f) = std::fs::File::options().append(true).open(&path) {
+            let _ = f.set_modified(std::time::SystemTime::now());
+        }
+        Some(bytes.split_off(32))
+    }
+
+    /// Stores a payload; a failure only costs the next render a rebuild, so it is logged, not returned.
+    pub fn store(&self, key: &str, kind: &str, payload: &[u8]) {
+        if let Err(e) = self.try_store(key, kind, payload) {
+            tracing::warn!("cannot write the prepared cache in {}: {e}", self.dir.display());
+        }
+    }
+
+    fn try_store(&self, key: &str, kind: &str, payload: &[u8]) -> std::io::Result<()> {
+        if payload.len() as u64 + 32 > self.cap {
+            return Ok(());
+        }
+        let tmp = self.dir.join(format!("{key}.{kind}.tmp-{}", std::process::id()));
+        let mut bytes = Vec::with_capacity(payload.len() + 32);
+        bytes.extend_from_slice(&photon_proto::checksum(payload));
+        bytes.extend_from_slice(payload);
+        std::fs::write(&tmp, &bytes)?;
+        std::fs::rename(&tmp, self.path(key, kind))?;
+        self.trim()
+    }
+
+    fn trim(&self) -> std::io::Result<()> {
+        let mut files = Vec::new();
+        for entry in std::fs::read_dir(&self.dir)? {
+            let entry = entry?;
+            let name = entry.file_name();
+            let name = name.to_string_lossy();
+            if name.ends_with(".scene") || name.ends_with(".photons") {
+                let meta = entry.metadata()?;
+                files.push((meta.modified()?, meta.len(), entry.path()));
+            }
+        }
+        let mut total: u64 = files.iter().map(|f| f.1).sum();
+        files.sort();
+        for (_, len, path) in files {
+            if total <= self.cap {
+                break;
+            }
+            std::fs::remove_file(&path)?;
+            total -= len;
+        }
+        Ok(())
+    }
+
+    /// The folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(dir: &Path, photons: u32, spp: u32) -> Scene {
+        let text = format!(
+            "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\
+             [render]\nspp = {spp}\n[render.photons]\nglobal = {photons}\n\
+             [materials.white]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
+             [[objects]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"white\"\n"
+        );
+        std::fs::write(dir.join("s.toml"), text).unwrap();
+        Scene::load(&dir.join("s.toml")).unwrap()
+    }
+
+    #[test]
+    fn keys_follow_the_inputs() {
+        let dir = std::env::temp_dir().join(format!("photon-prepared-keys-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let base = PreparedCache::keys(&scene(&dir, 1000, 4)).unwrap();
+        // Samples per pixel change neither key.
+        let spp = PreparedCache::keys(&scene(&dir, 1000, 64)).unwrap();
+        assert_eq!((&base.scene, &base.photons), (&spp.scene, &spp.photons));
+        // Photon settings change the photons key only.
+        let more = PreparedCache::keys(&scene(&dir, 2000, 4)).unwrap();
+        assert_eq!(base.scene, more.scene);
+        assert_ne!(base.photons, more.photons);
+        // A changed mesh file changes both.
+        std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 2 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        let mesh = PreparedCache::keys(&scene(&dir, 1000, 4)).unwrap();
+        assert_ne!(base.scene, mesh.scene);
+        assert_ne!(base.photons, mesh.photons);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn damaged_files_are_not_read() {
+        let dir = std::env::temp_dir().join(format!("photon-prepared-cache-{}", std::process::id()));
+        let cache = PreparedCache::open(dir.clone(), 1 << 20).unwrap();
+        cache.store("k", "scene", b"payload");
+        assert_eq!(cache.load("k", "scene").unwrap(), b"payload");
+        let mut bytes = std::fs::read(dir.join("k.scene")).unwrap();
+        let last = bytes.len() - 1;
+        bytes[last] ^= 1;
+        std::fs::write(dir.join("k.scene"), bytes).unwrap();
+        assert!(cache.load("k", "scene").is_none());
+        assert!(!dir.join("k.scene").exists());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
