@@ -118,12 +118,16 @@ impl LocalWorkers {
     }
 }
 
-/// `photon-worker` next to this executable.
+/// `photon-worker` next to this executable (or one folder up, for Cargo's examples and benches).
 fn worker_binary() -> Result<PathBuf, String> {
     let exe = std::env::current_exe().map_err(|e| format!("cannot locate this executable: {e}"))?;
-    let bin = exe.with_file_name(format!("photon-worker{}", std::env::consts::EXE_SUFFIX));
+    let name = format!("photon-worker{}", std::env::consts::EXE_SUFFIX);
+    let bin = exe.with_file_name(&name);
+    let up = exe.parent().and_then(Path::parent).map(|d| d.join(&name));
     if bin.is_file() {
         Ok(bin)
+    } else if let Some(up) = up.filter(|p| p.is_file()) {
+        Ok(up)
     } else {
         Err(format!(
             "{} is missing: --local starts worker processes from it (build it with `cargo build --release -p \

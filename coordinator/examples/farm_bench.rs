@@ -1,0 +1,197 @@
+//! Benchmarks of the distributed path on one machine (docs/RESULTS.md, "Distributed rendering"):
+//!
+//! 1. the same render direct (core's strip renderer, no scheduler, no wire), through the in-process worker
+//!    (the default), and on two loopback worker processes: medians of interleaved runs, overhead in %;
+//! 2. shipping photon maps: blob bytes and seconds per million photons on loopback, and whether LZ4 would pay
+//!    on loopback and on a 1 Gbit/s link;
+//! 3. strips per second: the scheduler state machine alone, and the whole farm with trivial strips.
+//!
+//! `cargo build --release -p photon-worker && cargo run --release -p photon-coordinator --example farm_bench`
+//! (the worker binary is needed for the loopback processes). `-- --quick` runs fewer, smaller cases.
+
+use photon_coordinator::farm::{self, Job, Options};
+use photon_coordinator::fleet::{InProcess, LocalWorkers};
+use photon_coordinator::scheduler::{Scheduler, WorkerId};
+use photon_core::prepare::Prepared;
+use photon_core::scene::{Integrator, Scene};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn job_of(prep: &Prepared) -> Job {
+    Job::new(
+        prep.encode_scene().expect("scene"),
+        prep.encode_photons().expect("photons"),
+        prep.encode_frame().expect("frame"),
+        prep.camera.width,
+        prep.camera.height,
+    )
+}
+
+fn cornell(size: u32, spp: u32, integrator: Integrator, photons: u32) -> (Scene, std::path::PathBuf) {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+    let mut scene = Scene::load(&path).expect("cornell.toml");
+    scene.camera.width = size;
+    scene.camera.height = size;
+    scene.render.spp = spp;
+    scene.render.integrator = integrator;
+    scene.render.photons.global = photons;
+    (scene, path)
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    let cores = rayon::current_num_threads();
+    let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("runtime");
+    println!("farm_bench: {cores} threads, {}", if quick { "quick" } else { "full" });
+
+    // 1. Overhead of the farm against the direct render.
+    let (size, spp, runs) = if quick { (96, 8, 3) } else { (256, 32, 5) };
+    let (scene, path) = cornell(size, spp, Integrator::Path, 0);
+    let prep = Prepared::new(&scene, &path).expect("prepare");
+    let job = job_of(&prep);
+    let (mut direct, mut inproc, mut two) = (Vec::new(), Vec::new(), Vec::new());
+    let local = rt.block_on(LocalWorkers::start(2, cores, None)).expect("start two loopback workers");
+    for _ in 0..runs {
+        let t = Instant::now();
+        let strip = photon_core::render::render_image(&prep, &prep.settings, &|_| {});
+        direct.push(t.elapsed().as_secs_f64());
+        let want: Vec<u32> = strip.pixels.iter().map(|v| v.to_bits()).collect();
+
+        let t = Instant::now();
+        let out = rt.block_on(async {
+            let w = InProcess::start(None).await.expect("in-process worker");
+            farm::render(&job, std::slice::from_ref(&w.addr), Options::default()).await
+        });
+        inproc.push(t.elapsed().as_secs_f64());
+        let got: Vec<u32> = out.expect("in-process render").pixels.iter().map(|v| v.to_bits()).collect();
+        assert!(got == want, "the in-process farm changed pixels");
+
+        let t = Instant::now();
+        let out = rt.block_on(farm::render(&job, &local.addrs, Options::default()));
+        two.push(t.elapsed().as_secs_f64());
+        let got: Vec<u32> = out.expect("two-worker render").pixels.iter().map(|v| v.to_bits()).collect();
+        assert!(got == want, "two workers changed pixels");
+    }
+    rt.block_on(local.stop());
+    let d = median(direct);
+    println!("\n## Overhead: Cornell {size}x{size}, {spp} spp, path, medians of {runs} interleaved runs");
+    println!("| how | median s | vs direct |");
+    println!("|---|---|---|");
+    println!("| direct (core renderer, no farm) | {d:.3} | — |");
+    for (name, v) in [("in-process worker (default)", inproc), ("2 loopback worker processes", two)] {
+        let m = median(v);
+        println!("| {name} | {m:.3} | {:+.1} % |", 100.0 * (m / d - 1.0));
+    }
+
+    // 2. Shipping photon maps.
+    println!("\n## Shipping photon maps to a fresh loopback worker (photon-map method, Cornell)");
+    println!("| photon paths | stored photons | blob MiB | B/photon | ship s | s per million photons | MB/s |");
+    println!("|---|---|---|---|---|---|---|");
+    let counts: &[u32] = if quick { &[100_000] } else { &[250_000, 1_000_000] };
+    let mut last_blob = Vec::new();
+    for &n in counts {
+        let (scene, path) = cornell(8, 1, Integrator::PhotonMap, n);
+        let prep = Prepared::new(&scene, &path).expect("prepare");
+        let stored = prep.photons.as_ref().map_or(0, |p| p.global.len());
+        let job = job_of(&prep);
+        let bytes = job.blob_bytes();
+        let mut times = Vec::new();
+        for _ in 0..3 {
+            let secs = rt.block_on(async {
+                let w = InProcess::start(Some(1)).await.expect("worker");
+                let mut c = farm::connect(&w.addr.uri, None, Duration::from_secs(3)).await.expect("connect");
+                let t = Instant::now();
+                let (_, shipped) = farm::introduce(&mut c, &job).await.expect("ship");
+                assert_eq!(shipped, bytes);
+                t.elapsed().as_secs_f64()
+            });
+            times.push(secs);
+        }
+        let s = median(times);
+        println!(
+            "| {n} | {stored} | {:.1} | {:.1} | {s:.3} | {:.3} | {:.0} |",
+            bytes as f64 / 1048576.0,
+            bytes as f64 / stored.max(1) as f64,
+            s / (stored as f64 / 1e6),
+            bytes as f64 / s / 1e6
+        );
+        last_blob = job.blobs.values().max_by_key(|b| b.len()).map(|b| b.to_vec()).unwrap_or_default();
+    }
+    compression(&last_blob);
+
+    // 3. Strips per second.
+    let n = if quick { 20_000 } else { 200_000 };
+    let mut sched = Scheduler::new(n, 1);
+    for w in 0..8 {
+        sched.add_worker(WorkerId(w), 4);
+    }
+    let t = Instant::now();
+    let mut now = Duration::ZERO;
+    while !sched.is_done() {
+        for w in 0..8 {
+            now += Duration::from_micros(1);
+            if let Some(a) = sched.assign(WorkerId(w), now) {
+                sched.complete(WorkerId(w), a.strip, a.attempt, now);
+            }
+        }
+    }
+    let pure = f64::from(n) / t.elapsed().as_secs_f64();
+    let rows = if quick { 500 } else { 2000 };
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+    let mut scene = Scene::load(&path).expect("cornell");
+    scene.camera.width = 1;
+    scene.camera.height = rows;
+    scene.render.spp = 1;
+    let prep = Prepared::new(&scene, &path).expect("prepare");
+    let job = job_of(&prep);
+    let mut rates = Vec::new();
+    for _ in 0..3 {
+        let t = Instant::now();
+        rt.block_on(async {
+            let w = InProcess::start(None).await.expect("worker");
+            let opts = Options { rows_per_strip: Some(1), ..Options::default() };
+            farm::render(&job, std::slice::from_ref(&w.addr), opts).await.expect("render")
+        });
+        rates.push(f64::from(rows) / t.elapsed().as_secs_f64());
+    }
+    println!("\n## Strips per second");
+    println!("| what | strips/s |");
+    println!("|---|---|");
+    println!("| scheduler state machine alone (8 workers, {n} strips, assign + complete) | {pure:.0} |");
+    println!(
+        "| whole farm, in-process worker, {rows} one-pixel strips (gRPC, validation, assembly), median of 3 | {:.0} |",
+        median(rates)
+    );
+}
+
+/// Would LZ4 pay? Compress and decompress the blob, and compare shipping times on loopback (measured rate) and
+/// on a 1 Gbit/s link (125 MB/s) with and without it.
+fn compression(blob: &[u8]) {
+    if blob.is_empty() {
+        return;
+    }
+    let t = Instant::now();
+    let packed = lz4_flex::compress_prepend_size(blob);
+    let c = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let back = lz4_flex::decompress_size_prepended(&packed).expect("lz4 round trip");
+    let d = t.elapsed().as_secs_f64();
+    assert_eq!(back, blob);
+    let ratio = blob.len() as f64 / packed.len() as f64;
+    let link = 125e6;
+    let raw = blob.len() as f64 / link;
+    let with = c + packed.len() as f64 / link + d;
+    println!(
+        "\nLZ4 on the largest blob ({:.1} MiB): ratio {ratio:.2}, compress {:.0} MB/s, decompress {:.0} MB/s; \
+         at 1 Gbit/s: {raw:.3} s raw vs {with:.3} s compressed ({:+.0} %)",
+        blob.len() as f64 / 1048576.0,
+        blob.len() as f64 / c / 1e6,
+        blob.len() as f64 / d / 1e6,
+        100.0 * (with / raw - 1.0)
+    );
+}
