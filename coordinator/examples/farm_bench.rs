@@ -9,6 +9,8 @@
 //! `cargo build --release -p photon-worker && cargo run --release -p photon-coordinator --example farm_bench`
 //! (the worker binary is needed for the loopback processes). `-- --quick` runs fewer, smaller cases.
 
+#![allow(clippy::expect_used)] // a benchmark: a failure should stop it loudly
+
 use photon_coordinator::farm::{self, Job, Options};
 use photon_coordinator::fleet::{InProcess, LocalWorkers};
 use photon_coordinator::scheduler::{Scheduler, WorkerId};

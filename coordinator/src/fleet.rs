@@ -6,6 +6,62 @@ use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tokio::io::AsyncBufReadExt;
 
+/// Which workers a command renders on.
+#[derive(Clone, Debug)]
+pub enum FleetSpec {
+    /// One worker server inside this process, with this many threads (`None`: all cores).
+    InProcess(Option<usize>),
+    /// `n` worker processes on loopback sharing `threads` threads, with an optional token file.
+    Local {
+        /// Processes.
+        n: usize,
+        /// Threads shared between them.
+        threads: usize,
+        /// The token file they are started with.
+        token_file: Option<PathBuf>,
+    },
+    /// Workers elsewhere.
+    Remote(Vec<WorkerAddr>),
+}
+
+/// Running workers: their addresses, and whatever must be stopped at the end.
+pub struct Fleet {
+    /// Where they listen.
+    pub addrs: Vec<WorkerAddr>,
+    in_process: Option<InProcess>,
+    local: Option<LocalWorkers>,
+}
+
+impl Fleet {
+    /// Starts the workers of `spec` (remote ones are only listed: the render connects to them).
+    pub async fn start(spec: &FleetSpec) -> Result<Self, String> {
+        Ok(match spec {
+            FleetSpec::InProcess(threads) => {
+                let w = InProcess::start(*threads).await?;
+                Self { addrs: vec![w.addr.clone()], in_process: Some(w), local: None }
+            }
+            FleetSpec::Local { n, threads, token_file } => {
+                let l = LocalWorkers::start(*n, *threads, token_file.as_deref()).await?;
+                Self { addrs: l.addrs.clone(), in_process: None, local: Some(l) }
+            }
+            FleetSpec::Remote(addrs) => Self { addrs: addrs.clone(), in_process: None, local: None },
+        })
+    }
+
+    /// Stops what was started here.
+    pub async fn stop(self) {
+        drop(self.in_process);
+        if let Some(l) = self.local {
+            l.stop().await;
+        }
+    }
+
+    /// Whether the workers run in this process (the default, single-machine case).
+    pub fn is_in_process(&self) -> bool {
+        self.in_process.is_some()
+    }
+}
+
 /// A host list file:
 ///
 /// ```toml

@@ -28,11 +28,11 @@ enum Command {
     /// Measure an image's error against a reference (RMSE, relative MSE, relative error, bias).
     Compare(CompareArgs),
     /// Render a reference EXR: the path tracer at many samples, or progressive photon mapping at many passes
-    /// when the scene has point-light caustics. Renders in this process on all cores (no remote workers yet).
+    /// when the scene has point-light caustics. Renders on workers like `render` (in-process by default).
     Reference(ReferenceArgs),
     /// Render with several methods at growing budgets, measure each image against a reference, and write
     /// sweep.csv, sweep.svg and sweep.png with equal-time and equal-error tables. Renders run one after another
-    /// in this process on all cores, like `render` (there are no remote workers yet).
+    /// on workers like `render` (in-process by default; `--workers`, `--hosts` or `--local` for others).
     Sweep(SweepArgs),
 }
 
@@ -62,9 +62,6 @@ struct RenderArgs {
     /// Progressive photon-mapping passes (overrides `render.photons.passes`).
     #[arg(long)]
     passes: Option<u32>,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
-    threads: Option<usize>,
     /// Exposure in stops for 8-bit outputs (overrides the scene's `render.exposure`).
     #[arg(long)]
     exposure: Option<f32>,
@@ -74,18 +71,8 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long, short)]
     quiet: bool,
-    /// Render on the workers of a host list (TOML: `[[worker]]` tables with `address` and an optional `name`).
-    #[arg(long, value_name = "FILE", conflicts_with_all = ["workers", "local"])]
-    hosts: Option<PathBuf>,
-    /// Render on these workers, e.g. `lab-01:7878,lab-02:7878`.
-    #[arg(long, value_name = "HOST:PORT,...", conflicts_with = "local")]
-    workers: Option<String>,
-    /// Start N `photon-worker` processes on loopback (sharing this machine's cores) and render on them.
-    #[arg(long, value_name = "N")]
-    local: Option<usize>,
-    /// A file holding the shared token the workers require.
-    #[arg(long, value_name = "FILE")]
-    token_file: Option<PathBuf>,
+    #[command(flatten)]
+    farm: FarmArgs,
     /// Continue an interrupted render from the partial file it left (`OUTPUT.partial`).
     #[arg(long, value_name = "FILE")]
     resume: Option<PathBuf>,
@@ -102,6 +89,67 @@ struct RenderArgs {
     /// Neither read nor write the prepared-blob cache.
     #[arg(long, conflicts_with = "cache_dir")]
     no_cache: bool,
+}
+
+/// Where to render: with none of `--hosts`, `--workers` or `--local`, on a worker inside this process.
+#[derive(clap::Args, Debug, Clone)]
+struct FarmArgs {
+    /// Render on the workers of a host list (TOML: `[[worker]]` tables with `address` and an optional `name`).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["workers", "local"])]
+    hosts: Option<PathBuf>,
+    /// Render on these workers, e.g. `lab-01:7878,lab-02:7878`.
+    #[arg(long, value_name = "HOST:PORT,...", conflicts_with = "local")]
+    workers: Option<String>,
+    /// Start N `photon-worker` processes on loopback (sharing this machine's cores) and render on them.
+    #[arg(long, value_name = "N")]
+    local: Option<usize>,
+    /// A file holding the shared token the workers require.
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
+    /// Threads on this machine, for preparing and for in-process or --local workers (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+}
+
+impl FarmArgs {
+    /// Checks the flags, sizes the thread pool and says which workers to use and which token to send.
+    fn resolve(&self) -> Result<(fleet::FleetSpec, Option<String>)> {
+        if let Some(t) = self.threads {
+            if t == 0 {
+                bail!("--threads must be at least 1");
+            }
+            rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("starting the thread pool")?;
+        }
+        if self.local == Some(0) {
+            bail!("--local must be at least 1");
+        }
+        let (spec, hosts_token) = match (&self.hosts, &self.workers, self.local) {
+            (Some(path), _, _) => {
+                let (w, t) = fleet::read_hosts(path).map_err(anyhow::Error::msg)?;
+                (fleet::FleetSpec::Remote(w), t)
+            }
+            (None, Some(list), _) => {
+                (fleet::FleetSpec::Remote(fleet::parse_workers(list).map_err(anyhow::Error::msg)?), None)
+            }
+            (None, None, Some(n)) => {
+                let threads = self.threads.unwrap_or_else(rayon::current_num_threads);
+                (fleet::FleetSpec::Local { n, threads, token_file: self.token_file.clone() }, None)
+            }
+            (None, None, None) => (fleet::FleetSpec::InProcess(self.threads), None),
+        };
+        let token_file = self.token_file.clone().or(hosts_token);
+        let token = token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
+        Ok((spec, token))
+    }
+}
+
+/// The async runtime of the farm: two threads are plenty for the network; rendering runs on rayon.
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the async runtime")
 }
 
 #[derive(clap::Args, Debug)]
@@ -141,6 +189,8 @@ struct ReferenceArgs {
     /// Override a scene setting, e.g. `--set render.photons.pass_photons=50000`; repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    #[command(flatten)]
+    farm: FarmArgs,
 }
 
 #[derive(clap::Args, Debug)]
@@ -166,6 +216,8 @@ struct SweepArgs {
     /// Override a scene setting for every render, e.g. `--set render.photons.pass_photons=20000`; repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     set: Vec<String>,
+    #[command(flatten)]
+    farm: FarmArgs,
 }
 
 fn parse_region(s: &str) -> Result<Region, String> {
@@ -197,6 +249,16 @@ fn main() {
         )
         .with_writer(std::io::stderr)
         .init();
+    // `photon-coordinator … | head` closes the pipe early: end quietly, as a SIGPIPE would, not with a panic.
+    let default_hook = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let msg = payload.downcast_ref::<String>().map(String::as_str).or(payload.downcast_ref::<&str>().copied());
+        if msg.is_some_and(|m| m.starts_with("failed printing to stdout")) {
+            std::process::exit(141);
+        }
+        default_hook(info);
+    }));
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
@@ -212,15 +274,10 @@ fn main() {
 
 fn render(args: RenderArgs) -> Result<()> {
     Format::from_path(&args.output)?;
-    if let Some(t) = args.threads {
-        if t == 0 {
-            bail!("--threads must be at least 1");
-        }
-        rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("starting the thread pool")?;
+    if args.rows_per_strip == Some(0) {
+        bail!("--rows-per-strip must be at least 1");
     }
-    if args.local == Some(0) || args.rows_per_strip == Some(0) {
-        bail!("--local and --rows-per-strip must be at least 1");
-    }
+    let (spec, token) = args.farm.resolve()?;
     let t0 = Instant::now();
     let mut scene = Scene::load_with(&args.scene, &args.set)?;
     if let Some((w, h)) = args.size {
@@ -257,17 +314,6 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         s.photons.passes = p;
     }
-    // Where the workers are, and the token they want.
-    let (remote, hosts_token) = match (&args.hosts, &args.workers) {
-        (Some(path), _) => {
-            let (w, t) = fleet::read_hosts(path).map_err(anyhow::Error::msg)?;
-            (Some(w), t)
-        }
-        (None, Some(list)) => (Some(fleet::parse_workers(list).map_err(anyhow::Error::msg)?), None),
-        (None, None) => (None, None),
-    };
-    let token_file = args.token_file.clone().or(hosts_token);
-    let token = token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
     let resume = match &args.resume {
         Some(path) => {
             let bytes = std::fs::read(path).with_context(|| format!("reading the partial file {}", path.display()))?;
@@ -288,11 +334,6 @@ fn render(args: RenderArgs) -> Result<()> {
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
 
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .context("starting the async runtime")?;
     let options = farm::Options {
         token,
         rows_per_strip: args.rows_per_strip,
@@ -300,28 +341,14 @@ fn render(args: RenderArgs) -> Result<()> {
         resume,
         progress: !args.quiet,
     };
-    let outcome = runtime.block_on(async {
-        let (_in_process, local, addrs) = match (remote, args.local) {
-            (Some(addrs), _) => (None, None, addrs),
-            (None, Some(n)) => {
-                let threads = args.threads.unwrap_or_else(rayon::current_num_threads);
-                let local =
-                    fleet::LocalWorkers::start(n, threads, token_file.as_deref()).await.map_err(anyhow::Error::msg)?;
-                let addrs = local.addrs.clone();
-                (None, Some(local), addrs)
-            }
-            (None, None) => {
-                let w = fleet::InProcess::start(args.threads).await.map_err(anyhow::Error::msg)?;
-                let addrs = vec![w.addr.clone()];
-                (Some(w), None, addrs)
-            }
-        };
-        let outcome = farm::render(&job, &addrs, options).await;
-        if let Some(l) = local {
-            l.stop().await;
-        }
-        anyhow::Ok(outcome)
+    let outcome = runtime()?.block_on(async {
+        let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let outcome = farm::render(&job, &fleet.addrs, options).await;
+        let in_process = fleet.is_in_process();
+        fleet.stop().await;
+        anyhow::Ok((outcome, in_process))
     })?;
+    let (outcome, in_process) = outcome;
     let outcome = match outcome {
         Ok(o) => o,
         Err(e) => {
@@ -351,7 +378,7 @@ fn render(args: RenderArgs) -> Result<()> {
         let _ = std::fs::remove_file(p);
     }
     let assemble_s = t_assemble.elapsed().as_secs_f64();
-    if outcome.workers.len() > 1 || args.hosts.is_some() || args.workers.is_some() || args.local.is_some() {
+    if !in_process {
         print_workers(&outcome.workers);
     }
     // Progressive photon mapping takes one camera sample per pass; the others take `spp`.
@@ -522,7 +549,13 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         }
     };
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
-    let t = sweep::render_timed(&scene, &args.scene)?;
+    let (spec, token) = args.farm.resolve()?;
+    let t = runtime()?.block_on(async {
+        let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let t = sweep::render_timed(&scene, &args.scene, &fleet.addrs, token).await;
+        fleet.stop().await;
+        t
+    })?;
     t.image.write(&args.output, 0.0)?;
     println!(
         "{}: {}x{}, {}, {:.2} s render (+{:.2} s prepare)",
@@ -557,20 +590,53 @@ fn sweep(args: SweepArgs) -> Result<()> {
     let mut base = Scene::load_with(&args.scene, &args.set)?;
     base.camera.width = width;
     base.camera.height = height;
-    println!(
-        "sweep of {} at {width}x{height} against {}: in-process on {} threads",
-        args.scene.display(),
-        args.reference.display(),
-        rayon::current_num_threads()
-    );
+    let (spec, token) = args.farm.resolve()?;
+    let rows = runtime()?.block_on(async {
+        // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
+        let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let names: Vec<&str> = fleet.addrs.iter().map(|a| a.name.as_str()).collect();
+        println!(
+            "sweep of {} at {width}x{height} against {}: on {} ({} threads here)",
+            args.scene.display(),
+            args.reference.display(),
+            names.join(", "),
+            rayon::current_num_threads()
+        );
+        let rows = sweep_rows(&args, &base, &reference, &fleet.addrs, token).await;
+        fleet.stop().await;
+        rows
+    })?;
+    let csv_path = args.out.join("sweep.csv");
+    std::fs::write(&csv_path, sweep::csv(&rows)).with_context(|| format!("writing {}", csv_path.display()))?;
+    let curves = sweep::curves(&rows);
+    let name = args.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let title = format!("{name} {width}x{height}: relative MSE against wall time");
+    let (svg, png) = (args.out.join("sweep.svg"), args.out.join("sweep.png"));
+    sweep::draw_charts(&curves, &title, &svg, &png)?;
+    println!("\nequal time (relMSE, log-log interpolation):\n{}", sweep::equal_time_table(&curves));
+    println!("equal error (seconds, log-log interpolation; — out of the measured range):");
+    println!("{}", sweep::equal_error_table(&curves));
+    println!("wrote {}, {} and {} (the PNG has no text)", csv_path.display(), svg.display(), png.display());
+    Ok(())
+}
+
+/// Renders every (method, budget) of a sweep on the workers at `addrs` and measures it.
+async fn sweep_rows(
+    args: &SweepArgs,
+    base: &Scene,
+    reference: &Image,
+    addrs: &[farm::WorkerAddr],
+    token: Option<String>,
+) -> Result<Vec<sweep::Row>> {
     let mut rows = Vec::new();
     for &method in &args.methods {
         for &b in &args.budget {
             let mut scene = base.clone();
             let setting = sweep::apply_budget(&mut scene.render, method, b)?;
-            let t = sweep::render_timed(&scene, &args.scene)
+            let t = sweep::render_timed(&scene, &args.scene, addrs, token.clone())
+                .await
                 .with_context(|| format!("rendering {method} at budget {b}"))?;
-            let m = metrics::compare(&t.image, &reference, None)
+            let m = metrics::compare(&t.image, reference, None)
                 .with_context(|| format!("measuring {method} at budget {b} against {}", args.reference.display()))?;
             let row = sweep::Row {
                 method,
@@ -592,18 +658,7 @@ fn sweep(args: SweepArgs) -> Result<()> {
             rows.push(row);
         }
     }
-    let csv_path = args.out.join("sweep.csv");
-    std::fs::write(&csv_path, sweep::csv(&rows)).with_context(|| format!("writing {}", csv_path.display()))?;
-    let curves = sweep::curves(&rows);
-    let name = args.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let title = format!("{name} {width}x{height}: relative MSE against wall time");
-    let (svg, png) = (args.out.join("sweep.svg"), args.out.join("sweep.png"));
-    sweep::draw_charts(&curves, &title, &svg, &png)?;
-    println!("\nequal time (relMSE, log-log interpolation):\n{}", sweep::equal_time_table(&curves));
-    println!("equal error (seconds, log-log interpolation; — out of the measured range):");
-    println!("{}", sweep::equal_error_table(&curves));
-    println!("wrote {}, {} and {} (the PNG has no text)", csv_path.display(), svg.display(), png.display());
-    Ok(())
+    Ok(rows)
 }
 
 /// The readable block of `compare`: one metric a line, labels in a column.

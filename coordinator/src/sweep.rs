@@ -4,7 +4,7 @@
 //! The pieces here are the ones worth testing without a renderer: how a budget multiplier becomes a method's
 //! setting ([`apply_budget`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
 //! for the equal-time and equal-error tables ([`error_at`], [`time_to`]), the CSV, and the chart
-//! ([`draw_charts`]). Renders run in this process on all cores ([`render_timed`]), like `render`.
+//! ([`draw_charts`]). Renders go through the workers, as `render`'s do ([`render_timed`]).
 
 use anyhow::{Context, Result};
 use photon_core::image_io::Image;
@@ -112,16 +112,26 @@ pub struct Timed {
     pub render_s: f64,
 }
 
-/// Prepares and renders `scene` in this process on the global rayon pool (all cores unless set otherwise).
-pub fn render_timed(scene: &Scene, scene_path: &Path) -> Result<Timed> {
+/// Prepares `scene` here (no prepared-blob cache: its time is part of the method's cost) and renders it on the
+/// workers at `addrs`, as `render` does. The render time runs from the first connection to the last strip, so it
+/// includes shipping the blobs (workers that already hold them are sent nothing).
+pub async fn render_timed(
+    scene: &Scene,
+    scene_path: &Path,
+    addrs: &[crate::farm::WorkerAddr],
+    token: Option<String>,
+) -> Result<Timed> {
     let t0 = Instant::now();
     let prep = Prepared::new(scene, scene_path)?;
+    let (width, height) = (prep.camera.width, prep.camera.height);
+    let job = crate::farm::Job::new(prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?, width, height);
+    drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let strip = photon_core::render::render_image(&prep, &prep.settings, &|_| {});
+    let options = crate::farm::Options { token, ..crate::farm::Options::default() };
+    let outcome = crate::farm::render(&job, addrs, options).await?;
     let render_s = t1.elapsed().as_secs_f64();
-    let image = Image { width: prep.camera.width, height: prep.camera.height, pixels: strip.pixels };
-    Ok(Timed { image, prepare_s, render_s })
+    Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s })
 }
 
 /// One measured render of the sweep.
