@@ -140,6 +140,10 @@ pub struct WorkerReport {
     pub shipped_bytes: u64,
     /// Seconds spent shipping to it.
     pub ship_s: f64,
+    /// Speculative copies it was given (tail duplicates of strips running elsewhere).
+    pub speculative: u32,
+    /// Its results dropped because another copy won.
+    pub duplicates: u32,
     /// Failures it had, and why it stopped, if it did.
     pub failures: u32,
     /// `active`, or why it was refused, lost or dropped.
@@ -706,6 +710,7 @@ fn reports(sched: &Scheduler, members: &[Member], width: u32) -> Vec<WorkerRepor
         .enumerate()
         .map(|(i, m)| {
             let stats = sched.worker_stats(WorkerId(i as u32));
+            let (speculative, duplicates) = stats.map_or((0, 0), |s| (s.speculative, s.duplicates));
             let (strips, busy_s, rows, failures) =
                 stats.map_or((0, 0.0, 0, 0), |s| (s.strips, s.busy.as_secs_f64(), s.rows, s.failures));
             let state = match (&m.out, stats.map(|s| &s.state)) {
@@ -723,6 +728,8 @@ fn reports(sched: &Scheduler, members: &[Member], width: u32) -> Vec<WorkerRepor
                 mpix_per_s: if busy_s > 0.0 { rows as f64 * f64::from(width) / 1e6 / busy_s } else { 0.0 },
                 shipped_bytes: m.shipped,
                 ship_s: m.ship_s,
+                speculative,
+                duplicates,
                 failures,
                 state,
             }

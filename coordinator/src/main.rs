@@ -472,12 +472,12 @@ fn partial_path(output: &std::path::Path) -> PathBuf {
 /// The per-worker table.
 fn print_workers(workers: &[farm::WorkerReport]) {
     println!(
-        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>8}  state",
-        "worker", "platform", "threads", "strips", "busy s", "Mpx/s", "shipped", "ship s", "failures"
+        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>8} {:>8}  state",
+        "worker", "platform", "threads", "strips", "busy s", "Mpx/s", "shipped", "ship s", "spec/dup", "failures"
     );
     for w in workers {
         println!(
-            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>8}  {}",
+            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>8} {:>8}  {}",
             w.name,
             w.platform,
             w.threads,
@@ -486,6 +486,7 @@ fn print_workers(workers: &[farm::WorkerReport]) {
             w.mpix_per_s,
             human_bytes(w.shipped_bytes),
             w.ship_s,
+            format!("{}/{}", w.speculative, w.duplicates),
             w.failures,
             w.state
         );

@@ -198,6 +198,27 @@ fn a_second_render_ships_no_blob() {
 }
 
 #[test]
+fn a_slow_worker_takes_fewer_strips_and_the_tail_does_not_wait_for_it() {
+    let want = reference(QUICK);
+    let dir = temp_dir("distributed", "slow");
+    let fast = WorkerProcess::start(&["--threads", "1"]);
+    let slow = WorkerProcess::start(&["--threads", "1", "--test-delay-ms", "400"]);
+    let out = dir.join("out.exr");
+    let o = render(&out, QUICK, &["--workers", &workers_arg(&[&fast, &slow]), "--rows-per-strip", "2"]);
+    assert!(o.status.success(), "{}", text(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let strips = |addr: &str| -> u32 {
+        let row = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("{}", text(&o)));
+        // worker, platform (2 words), threads, strips
+        row.split_whitespace().nth(4).unwrap().parse().unwrap()
+    };
+    let (f, s) = (strips(&fast.addr), strips(&slow.addr));
+    assert_eq!(f + s, 24, "every strip accepted once: {}", text(&o));
+    assert!(f >= 4 * s, "the fast worker should take most strips ({f} against {s}): {}", text(&o));
+    assert!(bits(&out) == want);
+}
+
+#[test]
 fn sigterm_stops_a_worker_cleanly() {
     let mut w = WorkerProcess::start(&[]);
     let status = w.terminate(Duration::from_secs(20)).expect("the worker did not stop within 20 s of SIGTERM");

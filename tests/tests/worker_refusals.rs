@@ -109,6 +109,18 @@ async fn bad_requests_are_refused_and_the_worker_keeps_serving() {
 }
 
 #[tokio::test]
+async fn the_standard_health_service_says_serving() {
+    use tonic_health::pb::{HealthCheckRequest, health_check_response::ServingStatus, health_client::HealthClient};
+    let w = WorkerProcess::start(&[]);
+    let channel = photon_proto::transport::endpoint(&format!("http://{}", w.addr)).unwrap().connect().await.unwrap();
+    let mut health = HealthClient::new(channel);
+    for service in ["", "photon.v1.Render"] {
+        let r = health.check(HealthCheckRequest { service: service.into() }).await.unwrap().into_inner();
+        assert_eq!(r.status(), ServingStatus::Serving, "service `{service}`");
+    }
+}
+
+#[tokio::test]
 async fn rows_outside_the_image_are_refused() {
     // A real job: the scene's blobs, then a strip beyond its last row.
     let path = photon_tests::scenes_dir().join("cornell.toml");

@@ -79,6 +79,8 @@ pub enum Fault {
     /// Change one pixel of each of the first `n` strips after computing their checksum, as a bit flip in
     /// memory or on the wire would.
     CorruptPixels(u32),
+    /// Wait this many milliseconds before each strip, as a much slower machine would take longer.
+    Delay(u64),
 }
 
 /// The decoded scene of one job, with its shared progressive passes.
@@ -116,7 +118,7 @@ impl Worker {
         let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
         let corrupt = match config.fault {
             Fault::CorruptPixels(n) => n,
-            Fault::None => 0,
+            Fault::None | Fault::Delay(_) => 0,
         };
         Ok(Self {
             pool: Arc::new(pool),
@@ -340,6 +342,10 @@ impl Render for Worker {
             jobs: self.jobs.clone(),
             pass_budget: self.config.pass_budget_bytes,
             corrupt_left: self.corrupt_left.clone(),
+            delay: match self.config.fault {
+                Fault::Delay(ms) => std::time::Duration::from_millis(ms),
+                _ => std::time::Duration::ZERO,
+            },
         };
         let slot = self.render_slot.clone();
         let waiting = self.waiting.clone();
@@ -374,6 +380,7 @@ struct StripContext {
     jobs: Arc<Mutex<Vec<Arc<Job>>>>,
     pass_budget: u64,
     corrupt_left: Arc<AtomicU32>,
+    delay: std::time::Duration,
 }
 
 type Event_ = Result<pb::StripEvent, Status>;
@@ -415,6 +422,16 @@ impl StripContext {
             )));
         }
         tracing::info!(strip = r.strip, attempt = r.attempt, rows = ?(r.row_start..r.row_end), "rendering strip");
+        if !self.delay.is_zero() {
+            // Test-only slowness, in small steps so a cancelled strip stops waiting.
+            let end = Instant::now() + self.delay;
+            while Instant::now() < end {
+                if tx.is_closed() {
+                    return Err(Status::cancelled("the coordinator cancelled the strip"));
+                }
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+        }
         let t0 = Instant::now();
         let progress = |rows: u32| {
             // A full channel only delays a progress report; a closed one means the coordinator left: stop.

@@ -39,6 +39,9 @@ struct Cli {
     /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
     #[arg(long, hide = true, value_name = "N")]
     test_corrupt_strips: Option<u32>,
+    /// Test only: wait MS milliseconds before each strip, like a much slower machine.
+    #[arg(long, hide = true, value_name = "MS")]
+    test_delay_ms: Option<u64>,
 }
 
 fn main() {
@@ -73,6 +76,9 @@ fn run(cli: Cli) -> Result<()> {
     }
     if let Some(n) = cli.test_corrupt_strips {
         config.fault = Fault::CorruptPixels(n);
+    }
+    if let Some(ms) = cli.test_delay_ms {
+        config.fault = Fault::Delay(ms);
     }
     let worker = Worker::new(config).map_err(anyhow::Error::msg)?;
     let threads = worker.threads();
