@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use photon_coordinator::prepared_cache::{self, PreparedCache};
 use photon_coordinator::sweep::{self, sig};
-use photon_coordinator::{farm, fleet};
+use photon_coordinator::{farm, fleet, scheduler};
 use photon_core::image_io::{Format, Image};
 use photon_core::metrics::{self, Metrics, Region};
 use photon_core::prepare::Prepared;
@@ -341,8 +341,13 @@ fn render(args: RenderArgs) -> Result<()> {
         resume,
         progress: !args.quiet,
     };
+    let progressive = settings.integrator == Integrator::Progressive;
     let outcome = runtime()?.block_on(async {
         let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let mut options = options;
+        if progressive && options.rows_per_strip.is_none() {
+            options.rows_per_strip = Some(scheduler::rows_per_strip_progressive(height, fleet.addrs.len() as u32));
+        }
         let outcome = farm::render(&job, &fleet.addrs, options).await;
         let in_process = fleet.is_in_process();
         fleet.stop().await;

@@ -98,6 +98,14 @@ pub fn rows_per_strip_for(height: u32, workers: u32) -> u32 {
     height.div_ceil(target_strips).clamp(1, 64)
 }
 
+/// Rows per strip for progressive photon mapping: about 4 strips per worker. Every strip needs the photon maps of
+/// every pass; a worker keeps them for its next strip only as far as its memory allows, and traces them again
+/// beyond that, so fewer, taller strips bound the repeated tracing (measured: 512 passes of 100 000 photons on a
+/// 32×32 image took 451 s in 16 strips on one worker that kept no maps, and 39 s in 4 strips that kept them).
+pub fn rows_per_strip_progressive(height: u32, workers: u32) -> u32 {
+    height.div_ceil(workers.max(1).saturating_mul(4)).max(1)
+}
+
 /// One strip given to one worker.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Assignment {

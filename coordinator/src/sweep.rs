@@ -128,7 +128,9 @@ pub async fn render_timed(
     drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let options = crate::farm::Options { token, ..crate::farm::Options::default() };
+    let rows_per_strip = (scene.render.integrator == Integrator::Progressive)
+        .then(|| crate::scheduler::rows_per_strip_progressive(height, addrs.len() as u32));
+    let options = crate::farm::Options { token, rows_per_strip, ..crate::farm::Options::default() };
     let outcome = crate::farm::render(&job, addrs, options).await?;
     let render_s = t1.elapsed().as_secs_f64();
     Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s })

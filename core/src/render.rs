@@ -16,7 +16,7 @@ use crate::scene::RenderSettings;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, OnceLock};
 
 /// A rendered strip: linear RGB radiance of rows `rows`, row-major, 3 floats per pixel.
@@ -93,44 +93,54 @@ pub fn render_strip_with(
 }
 
 /// The photon maps of progressive photon mapping's passes, traced once per job and shared by all the strips a
-/// process renders of it, or traced again for every strip when they would not fit the memory budget. A pass's
-/// map depends only on the prepared scene, the settings and the pass index, so sharing it changes no pixel.
+/// process renders of it, as far as a memory budget allows: passes whose maps no longer fit are traced again by
+/// every strip. A pass's map depends only on the prepared scene, the settings and the pass index, so sharing it
+/// changes no pixel.
 pub struct PassMaps {
-    /// One slot per pass when shared; empty when every strip traces its own.
-    maps: Vec<OnceLock<Option<Arc<PhotonMap>>>>,
+    /// One slot per pass (none when the method is not progressive); a slot stays empty for a pass whose map
+    /// did not fit the budget.
+    maps: Vec<OnceLock<Arc<PhotonMap>>>,
+    budget: u64,
+    used: AtomicU64,
 }
 
 impl PassMaps {
-    /// Bytes a stored photon takes with its share of the kd-tree (measured: docs/RESULTS.md, "Photon map").
-    const BYTES_PER_PHOTON: u64 = 64;
-
-    /// Shares the passes of `settings` when the method is progressive and all their maps fit in `budget` bytes
-    /// (with up to two stored photons per path); `budget` 0 never shares.
+    /// Shares the passes of `settings` (when the method is progressive) while their maps take at most `budget`
+    /// bytes in all; `budget` 0 never shares.
     pub fn new(settings: &RenderSettings, budget: u64) -> Self {
-        let ph = &settings.photons;
-        let bytes = u64::from(ph.passes) * u64::from(ph.pass_photons) * 2 * Self::BYTES_PER_PHOTON;
-        let share = settings.integrator == Integrator::Progressive && bytes <= budget;
-        let n = if share { ph.passes as usize } else { 0 };
-        Self { maps: (0..n).map(|_| OnceLock::new()).collect() }
+        let n = if settings.integrator == Integrator::Progressive { settings.photons.passes as usize } else { 0 };
+        Self { maps: (0..n).map(|_| OnceLock::new()).collect(), budget, used: AtomicU64::new(0) }
     }
 
-    /// Whether the passes are shared between strips.
-    pub fn shared(&self) -> bool {
-        !self.maps.is_empty()
+    /// Bytes of the maps kept so far.
+    pub fn kept_bytes(&self) -> u64 {
+        self.used.load(Ordering::Relaxed)
     }
 
-    /// The photon map of `pass`, traced on first use. `None` when it cannot be built (no photon was stored).
+    /// Passes whose maps are kept for the next strip.
+    pub fn kept_passes(&self) -> usize {
+        self.maps.iter().filter(|m| m.get().is_some()).count()
+    }
+
+    /// The photon map of `pass`: the kept one, or traced now (and kept if it fits). `None` when it cannot be
+    /// built (no photon was stored).
     fn get(&self, prep: &Prepared, settings: &RenderSettings, pass: u32) -> Option<Arc<PhotonMap>> {
-        let trace = || {
-            let n = u64::from(settings.photons.pass_photons);
-            let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
-            // Traced photons lie on surfaces and are finite; a map that cannot be built contributes nothing.
-            PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok().map(Arc::new)
-        };
-        match self.maps.get(pass as usize) {
-            Some(slot) => slot.get_or_init(trace).clone(),
-            None => trace(),
+        let slot = self.maps.get(pass as usize);
+        if let Some(map) = slot.and_then(OnceLock::get) {
+            return Some(map.clone());
         }
+        let n = u64::from(settings.photons.pass_photons);
+        let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
+        // Traced photons lie on surfaces and are finite; a map that cannot be built contributes nothing.
+        let map = Arc::new(PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok()?);
+        let bytes = map.memory_bytes() as u64;
+        if let Some(slot) = slot
+            && self.used.load(Ordering::Relaxed) + bytes <= self.budget
+            && slot.set(map.clone()).is_ok()
+        {
+            self.used.fetch_add(bytes, Ordering::Relaxed);
+        }
+        Some(map)
     }
 }
 

@@ -46,7 +46,8 @@ pub struct Config {
     pub max_blob_bytes: u64,
     /// Strip requests that may wait behind the one rendering.
     pub max_queue: usize,
-    /// Memory for sharing progressive photon passes between the strips of one job, in bytes.
+    /// Memory for sharing progressive photon passes between the strips of one job, in bytes (default: a quarter
+    /// of the machine's memory, at least 1 GiB).
     pub pass_budget_bytes: u64,
     /// The build id this worker claims (the real one unless a test pretends otherwise).
     pub build_id: String,
@@ -63,7 +64,7 @@ impl Default for Config {
             disk_cache: None,
             max_blob_bytes: 4 << 30,
             max_queue: 4,
-            pass_budget_bytes: 2 << 30,
+            pass_budget_bytes: (memory_bytes() / 4).max(1 << 30),
             build_id: photon_proto::BUILD_ID.to_owned(),
             fault: Fault::None,
         }
