@@ -106,7 +106,7 @@ fn main() {
         for _ in 0..3 {
             let secs = rt.block_on(async {
                 let w = InProcess::start(Some(1)).await.expect("worker");
-                let mut c = farm::connect(&w.addr.uri, None, Duration::from_secs(3)).await.expect("connect");
+                let mut c = farm::connect(&w.addr.uri, None, None, Duration::from_secs(3)).await.expect("connect");
                 let t = Instant::now();
                 let (_, shipped) = farm::introduce(&mut c, &job).await.expect("ship");
                 assert_eq!(shipped, bytes);

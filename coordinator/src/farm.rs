@@ -96,6 +96,8 @@ impl WorkerAddr {
 pub struct Options {
     /// The shared token, sent with every call.
     pub token: Option<String>,
+    /// TLS: the PEM certificate authority that signed the workers' certificates (plaintext when `None`).
+    pub tls_ca: Option<Vec<u8>>,
     /// Rows per strip (default: [`crate::scheduler::rows_per_strip_for`]).
     pub rows_per_strip: Option<u32>,
     /// The scheduling policy.
@@ -222,8 +224,14 @@ impl tonic::service::Interceptor for Auth {
 pub type Client = RenderClient<InterceptedService<Channel, Auth>>;
 
 /// Connects to a worker, retrying refused connections for `patience` (a worker that was just started may not
-/// listen yet).
-pub async fn connect(uri: &str, token: Option<&str>, patience: Duration) -> Result<Client, String> {
+/// listen yet). With `tls_ca`, the connection is TLS and the worker's certificate must be signed by that
+/// authority and name the worker's host.
+pub async fn connect(
+    uri: &str,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Result<Client, String> {
     let auth = match token {
         Some(t) => Some(
             MetadataValue::try_from(photon_proto::bearer(t))
@@ -231,7 +239,12 @@ pub async fn connect(uri: &str, token: Option<&str>, patience: Duration) -> Resu
         ),
         None => None,
     };
-    let endpoint = photon_proto::transport::endpoint(uri).map_err(|e| format!("bad worker address {uri}: {e}"))?;
+    let uri = if tls_ca.is_some() { uri.replacen("http://", "https://", 1) } else { uri.to_owned() };
+    let endpoint = match tls_ca {
+        Some(ca) => photon_proto::transport::tls_endpoint(&uri, ca),
+        None => photon_proto::transport::endpoint(&uri),
+    }
+    .map_err(|e| format!("bad worker address {uri}: {e}"))?;
     let start = Instant::now();
     let channel = loop {
         match endpoint.connect().await {
@@ -240,7 +253,16 @@ pub async fn connect(uri: &str, token: Option<&str>, patience: Duration) -> Resu
                 tracing::debug!(uri, "connect: {e}; retrying");
                 tokio::time::sleep(Duration::from_millis(100)).await;
             }
-            Err(e) => return Err(format!("cannot connect to {uri}: {}", error_chain(&e))),
+            Err(e) => {
+                let chain = error_chain(&e);
+                // A TLS client talking to a plaintext worker sees its handshake answered with HTTP/2 bytes.
+                let hint = if tls_ca.is_some() && !chain.contains("certificate") && !chain.contains("refused") {
+                    " (if the worker runs without --tls-cert, drop --tls-ca)"
+                } else {
+                    ""
+                };
+                return Err(format!("cannot connect to {uri}: {chain}{hint}"));
+            }
         }
     };
     Ok(RenderClient::with_interceptor(channel, Auth(auth))
@@ -279,7 +301,16 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
             crate_version: photon_proto::CRATE_VERSION.to_owned(),
         })
         .await
-        .map_err(|s| format!("refused: {}", status_line(&s)))?
+        .map_err(|s| {
+            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer.
+            let hint = match s.code() {
+                Code::Unavailable | Code::Unknown | Code::Internal => {
+                    " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
+                }
+                _ => "",
+            };
+            format!("refused: {}{hint}", status_line(&s))
+        })?
         .into_inner();
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
     let missing = client
@@ -480,10 +511,11 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Resu
     let mut sessions = Vec::new();
     for (i, addr) in workers.iter().enumerate() {
         let (tx, job, addr, token) = (tx.clone(), job.clone(), addr.clone(), options.token.clone());
+        let tls_ca = options.tls_ca.clone();
         let worker = WorkerId(i as u32);
         sessions.push(tokio::spawn(async move {
             let started = Instant::now();
-            let event = match connect(&addr.uri, token.as_deref(), Duration::from_secs(3)).await {
+            let event = match connect(&addr.uri, token.as_deref(), tls_ca.as_deref(), Duration::from_secs(3)).await {
                 Err(reason) => Event::Refused { worker, reason },
                 Ok(mut client) => match introduce(&mut client, &job).await {
                     Ok((hello, shipped)) => Event::Ready {

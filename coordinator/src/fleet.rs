@@ -66,6 +66,7 @@ impl Fleet {
 ///
 /// ```toml
 /// # token_file = "farm.token"   # optional: the shared token, relative to this file
+/// # tls_ca = "ca.pem"           # optional: speak TLS, trusting this authority (relative to this file)
 /// [[worker]]
 /// address = "lab-01.example.edu:7878"
 /// name = "lab-01"               # optional: the name in reports
@@ -75,6 +76,8 @@ impl Fleet {
 struct HostsFile {
     #[serde(default)]
     token_file: Option<PathBuf>,
+    #[serde(default)]
+    tls_ca: Option<PathBuf>,
     #[serde(default)]
     worker: Vec<HostEntry>,
 }
@@ -87,8 +90,20 @@ struct HostEntry {
     name: Option<String>,
 }
 
-/// The workers of a host list and the token file it names (resolved against the list's folder).
-pub fn read_hosts(path: &Path) -> Result<(Vec<WorkerAddr>, Option<PathBuf>), String> {
+/// What a host list gives: its workers, and the token file and TLS authority it names (resolved against the
+/// list's folder).
+#[derive(Debug)]
+pub struct Hosts {
+    /// The workers.
+    pub workers: Vec<WorkerAddr>,
+    /// The shared token's file.
+    pub token_file: Option<PathBuf>,
+    /// The certificate authority of the workers' TLS certificates.
+    pub tls_ca: Option<PathBuf>,
+}
+
+/// Reads a host list.
+pub fn read_hosts(path: &Path) -> Result<Hosts, String> {
     let text =
         std::fs::read_to_string(path).map_err(|e| format!("cannot read the host list {}: {e}", path.display()))?;
     let hosts: HostsFile = toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
@@ -101,7 +116,11 @@ pub fn read_hosts(path: &Path) -> Result<(Vec<WorkerAddr>, Option<PathBuf>), Str
         workers.push(WorkerAddr::new(&w.address, w.name.as_deref()));
     }
     let base = path.parent().unwrap_or(Path::new("."));
-    Ok((workers, hosts.token_file.map(|t| base.join(t))))
+    Ok(Hosts {
+        workers,
+        token_file: hosts.token_file.map(|t| base.join(t)),
+        tls_ca: hosts.tls_ca.map(|t| base.join(t)),
+    })
 }
 
 /// Workers from `a:port,b:port`.
@@ -256,9 +275,9 @@ mod tests {
         let e = read_hosts(&p).unwrap_err();
         assert!(e.contains("hosts.toml") && e.contains("worker[1].address"), "{e}");
         std::fs::write(&p, "token_file = \"t\"\n[[worker]]\naddress = \"a:1\"\nname = \"A\"\n").unwrap();
-        let (w, t) = read_hosts(&p).unwrap();
-        assert_eq!(w[0].name, "A");
-        assert_eq!(t.unwrap(), dir.join("t"));
+        let hosts = read_hosts(&p).unwrap();
+        assert_eq!(hosts.workers[0].name, "A");
+        assert_eq!(hosts.token_file.unwrap(), dir.join("t"));
         std::fs::write(&p, "[[worker]]\nadress = \"a:1\"\n").unwrap();
         let e = read_hosts(&p).unwrap_err();
         assert!(e.contains("adress"), "{e}");

@@ -106,14 +106,25 @@ struct FarmArgs {
     /// A file holding the shared token the workers require.
     #[arg(long, value_name = "FILE")]
     token_file: Option<PathBuf>,
+    /// Speak TLS to the workers, trusting only this PEM certificate authority (see deploy/tls/make-certs.sh).
+    #[arg(long, value_name = "FILE")]
+    tls_ca: Option<PathBuf>,
     /// Threads on this machine, for preparing and for in-process or --local workers (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
 }
 
+/// What the farm flags resolve to.
+struct Resolved {
+    spec: fleet::FleetSpec,
+    token: Option<String>,
+    tls_ca: Option<Vec<u8>>,
+}
+
 impl FarmArgs {
-    /// Checks the flags, sizes the thread pool and says which workers to use and which token to send.
-    fn resolve(&self) -> Result<(fleet::FleetSpec, Option<String>)> {
+    /// Checks the flags, sizes the thread pool and says which workers to use, which token to send and which
+    /// authority to trust.
+    fn resolve(&self) -> Result<Resolved> {
         if let Some(t) = self.threads {
             if t == 0 {
                 bail!("--threads must be at least 1");
@@ -123,23 +134,27 @@ impl FarmArgs {
         if self.local == Some(0) {
             bail!("--local must be at least 1");
         }
-        let (spec, hosts_token) = match (&self.hosts, &self.workers, self.local) {
+        let (spec, hosts_token, hosts_ca) = match (&self.hosts, &self.workers, self.local) {
             (Some(path), _, _) => {
-                let (w, t) = fleet::read_hosts(path).map_err(anyhow::Error::msg)?;
-                (fleet::FleetSpec::Remote(w), t)
+                let h = fleet::read_hosts(path).map_err(anyhow::Error::msg)?;
+                (fleet::FleetSpec::Remote(h.workers), h.token_file, h.tls_ca)
             }
             (None, Some(list), _) => {
-                (fleet::FleetSpec::Remote(fleet::parse_workers(list).map_err(anyhow::Error::msg)?), None)
+                (fleet::FleetSpec::Remote(fleet::parse_workers(list).map_err(anyhow::Error::msg)?), None, None)
             }
             (None, None, Some(n)) => {
                 let threads = self.threads.unwrap_or_else(rayon::current_num_threads);
-                (fleet::FleetSpec::Local { n, threads, token_file: self.token_file.clone() }, None)
+                (fleet::FleetSpec::Local { n, threads, token_file: self.token_file.clone() }, None, None)
             }
-            (None, None, None) => (fleet::FleetSpec::InProcess(self.threads), None),
+            (None, None, None) => (fleet::FleetSpec::InProcess(self.threads), None, None),
         };
         let token_file = self.token_file.clone().or(hosts_token);
         let token = token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
-        Ok((spec, token))
+        let tls_ca = match self.tls_ca.clone().or(hosts_ca) {
+            Some(p) => Some(std::fs::read(&p).with_context(|| format!("reading the TLS authority {}", p.display()))?),
+            None => None,
+        };
+        Ok(Resolved { spec, token, tls_ca })
     }
 }
 
@@ -277,7 +292,7 @@ fn render(args: RenderArgs) -> Result<()> {
     if args.rows_per_strip == Some(0) {
         bail!("--rows-per-strip must be at least 1");
     }
-    let (spec, token) = args.farm.resolve()?;
+    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t0 = Instant::now();
     let mut scene = Scene::load_with(&args.scene, &args.set)?;
     if let Some((w, h)) = args.size {
@@ -336,6 +351,7 @@ fn render(args: RenderArgs) -> Result<()> {
 
     let options = farm::Options {
         token,
+        tls_ca,
         rows_per_strip: args.rows_per_strip,
         policy: Default::default(),
         resume,
@@ -555,10 +571,11 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         }
     };
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
-    let (spec, token) = args.farm.resolve()?;
+    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t = runtime()?.block_on(async {
         let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
-        let t = sweep::render_timed(&scene, &args.scene, &fleet.addrs, token).await;
+        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
+        let t = sweep::render_timed(&scene, &args.scene, &fleet.addrs, options).await;
         fleet.stop().await;
         t
     })?;
@@ -596,7 +613,7 @@ fn sweep(args: SweepArgs) -> Result<()> {
     let mut base = Scene::load_with(&args.scene, &args.set)?;
     base.camera.width = width;
     base.camera.height = height;
-    let (spec, token) = args.farm.resolve()?;
+    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let rows = runtime()?.block_on(async {
         // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
         let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
@@ -608,7 +625,8 @@ fn sweep(args: SweepArgs) -> Result<()> {
             names.join(", "),
             rayon::current_num_threads()
         );
-        let rows = sweep_rows(&args, &base, &reference, &fleet.addrs, token).await;
+        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
+        let rows = sweep_rows(&args, &base, &reference, &fleet.addrs, options).await;
         fleet.stop().await;
         rows
     })?;
@@ -632,14 +650,14 @@ async fn sweep_rows(
     base: &Scene,
     reference: &Image,
     addrs: &[farm::WorkerAddr],
-    token: Option<String>,
+    options: farm::Options,
 ) -> Result<Vec<sweep::Row>> {
     let mut rows = Vec::new();
     for &method in &args.methods {
         for &b in &args.budget {
             let mut scene = base.clone();
             let setting = sweep::apply_budget(&mut scene.render, method, b)?;
-            let t = sweep::render_timed(&scene, &args.scene, addrs, token.clone())
+            let t = sweep::render_timed(&scene, &args.scene, addrs, options.clone())
                 .await
                 .with_context(|| format!("rendering {method} at budget {b}"))?;
             let m = metrics::compare(&t.image, reference, None)

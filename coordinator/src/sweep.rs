@@ -119,7 +119,7 @@ pub async fn render_timed(
     scene: &Scene,
     scene_path: &Path,
     addrs: &[crate::farm::WorkerAddr],
-    token: Option<String>,
+    options: crate::farm::Options,
 ) -> Result<Timed> {
     let t0 = Instant::now();
     let prep = Prepared::new(scene, scene_path)?;
@@ -130,7 +130,7 @@ pub async fn render_timed(
     let t1 = Instant::now();
     let rows_per_strip = (scene.render.integrator == Integrator::Progressive)
         .then(|| crate::scheduler::rows_per_strip_progressive(height, addrs.len() as u32));
-    let options = crate::farm::Options { token, rows_per_strip, ..crate::farm::Options::default() };
+    let options = crate::farm::Options { rows_per_strip, ..options };
     let outcome = crate::farm::render(&job, addrs, options).await?;
     let render_s = t1.elapsed().as_secs_f64();
     Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s })

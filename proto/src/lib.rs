@@ -113,6 +113,20 @@ pub mod transport {
             .keep_alive_while_idle(true))
     }
 
+    /// A client endpoint that speaks TLS to a worker at `uri` (`https://host:port`), trusting only the
+    /// certificate authority in `ca_pem`; the worker's certificate must name the host of `uri`.
+    pub fn tls_endpoint(uri: &str, ca_pem: &[u8]) -> Result<tonic::transport::Endpoint, tonic::transport::Error> {
+        let tls =
+            tonic::transport::ClientTlsConfig::new().ca_certificate(tonic::transport::Certificate::from_pem(ca_pem));
+        endpoint(uri)?.tls_config(tls)
+    }
+
+    /// A server builder that speaks TLS with the certificate chain and key in `cert_pem` and `key_pem`.
+    pub fn tls_server(cert_pem: &[u8], key_pem: &[u8]) -> Result<tonic::transport::Server, tonic::transport::Error> {
+        let identity = tonic::transport::Identity::from_pem(cert_pem, key_pem);
+        server().tls_config(tonic::transport::ServerTlsConfig::new().identity(identity))
+    }
+
     /// The connections a server accepts on `listener`, with TCP_NODELAY (a server given its own listener does not
     /// apply the builder's setting, and without it every small message waits for a delayed ACK, ~40 ms).
     pub fn incoming(listener: tokio::net::TcpListener) -> tonic::transport::server::TcpIncoming {

@@ -82,10 +82,16 @@ pub struct WorkerProcess {
 }
 
 impl WorkerProcess {
-    /// Starts a worker with extra arguments; panics if it does not report its address within 20 s.
+    /// Starts a worker on a free loopback port with extra arguments; panics if it does not report its address
+    /// within 20 s.
     pub fn start(args: &[&str]) -> Self {
+        Self::start_on("127.0.0.1:0", args)
+    }
+
+    /// Starts a worker listening on `listen`.
+    pub fn start_on(listen: &str, args: &[&str]) -> Self {
         let mut child = Command::new(worker())
-            .args(["--listen", "127.0.0.1:0"])
+            .args(["--listen", listen])
             .args(args)
             .env("RUST_LOG", "info")
             .env("NO_COLOR", "1")

@@ -38,6 +38,8 @@ pub struct Config {
     pub threads: Option<usize>,
     /// The shared token every call must carry, when set.
     pub token: Option<String>,
+    /// TLS: the PEM certificate chain and private key this worker presents (plaintext when `None`).
+    pub tls: Option<(Vec<u8>, Vec<u8>)>,
     /// Bytes of blobs kept in memory.
     pub memory_cache_bytes: u64,
     /// A folder that keeps blobs across restarts, and its size cap in bytes.
@@ -60,6 +62,7 @@ impl Default for Config {
         Self {
             threads: None,
             token: None,
+            tls: None,
             memory_cache_bytes: 4 << 30,
             disk_cache: None,
             max_blob_bytes: 4 << 30,
@@ -151,6 +154,10 @@ pub async fn serve(
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), tonic::transport::Error> {
     let token = worker.config.token.clone();
+    let builder = match &worker.config.tls {
+        Some((cert, key)) => photon_proto::transport::tls_server(cert, key)?,
+        None => photon_proto::transport::server(),
+    };
     let (health, health_service) = tonic_health::server::health_reporter();
     health.set_serving::<RenderServer<Worker>>().await;
     let service =
@@ -164,7 +171,8 @@ pub async fn serve(
             None => Err(Status::unauthenticated("this worker requires a token (coordinator: --token-file)")),
         }
     };
-    photon_proto::transport::server()
+    let mut builder = builder;
+    builder
         .add_service(health_service)
         .add_service(tonic::service::interceptor::InterceptedService::new(service, check))
         .serve_with_incoming_shutdown(photon_proto::transport::incoming(listener), shutdown)

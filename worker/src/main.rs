@@ -21,6 +21,12 @@ struct Cli {
     /// A file holding the shared token every coordinator call must carry.
     #[arg(long)]
     token_file: Option<PathBuf>,
+    /// Speak TLS with this PEM certificate (chain); needs --tls-key. See deploy/tls/make-certs.sh.
+    #[arg(long, requires = "tls_key")]
+    tls_cert: Option<PathBuf>,
+    /// The PEM private key of --tls-cert.
+    #[arg(long, requires = "tls_cert")]
+    tls_key: Option<PathBuf>,
     /// A folder that keeps received blobs across restarts.
     #[arg(long)]
     cache_dir: Option<PathBuf>,
@@ -63,9 +69,16 @@ fn run(cli: Cli) -> Result<()> {
         bail!("--threads must be at least 1");
     }
     let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
+    let read =
+        |p: &PathBuf, what: &str| std::fs::read(p).with_context(|| format!("reading the {what} {}", p.display()));
+    let tls = match (&cli.tls_cert, &cli.tls_key) {
+        (Some(c), Some(k)) => Some((read(c, "TLS certificate")?, read(k, "TLS key")?)),
+        _ => None,
+    };
     let mut config = Config {
         threads: cli.threads,
         token,
+        tls,
         memory_cache_bytes: cli.cache_mib << 20,
         disk_cache: cli.cache_dir.map(|d| (d, cli.cache_dir_mib << 20)),
         max_blob_bytes: cli.max_blob_mib << 20,
@@ -80,6 +93,7 @@ fn run(cli: Cli) -> Result<()> {
     if let Some(ms) = cli.test_delay_ms {
         config.fault = Fault::Delay(ms);
     }
+    let config_tls_off = config.tls.is_none();
     let worker = Worker::new(config).map_err(anyhow::Error::msg)?;
     let threads = worker.threads();
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -92,6 +106,14 @@ fn run(cli: Cli) -> Result<()> {
             .await
             .with_context(|| format!("cannot listen on {}", cli.listen))?;
         let addr = listener.local_addr().context("reading the bound address")?;
+        if !addr.ip().is_loopback() && config_tls_off {
+            tracing::warn!(
+                %addr,
+                "listening beyond loopback without TLS: anyone who can reach this port can read the scenes and \
+                 images; use --tls-cert/--tls-key (and --token-file) on a shared network"
+            );
+            eprintln!("warning: {addr} is not a loopback address and TLS is off (see --tls-cert)");
+        }
         // The first line of standard output names the address: scripts and tests that asked for port 0 read it.
         println!("photon-worker listening on {addr}");
         std::io::stdout().flush().context("writing to standard output")?;

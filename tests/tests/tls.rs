@@ -1,0 +1,93 @@
+//! TLS between coordinator and workers, with certificates from `deploy/tls/make-certs.sh`: a coordinator that
+//! trusts the workers' authority and holds the token renders; one without the authority, with another authority,
+//! with another name for the worker, with the wrong token or speaking TLS to a plaintext worker is refused with a
+//! message that says why, and the worker keeps serving. A worker listening beyond loopback without TLS warns.
+
+#![allow(clippy::unwrap_used)]
+
+use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use std::path::Path;
+use std::process::{Command, Output};
+use std::time::Duration;
+
+fn certs(dir: &Path, hosts: &[&str]) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../deploy/tls/make-certs.sh");
+    let out = Command::new("bash").arg(script).arg(dir).args(hosts).output().unwrap();
+    assert!(out.status.success(), "make-certs.sh failed: {}", String::from_utf8_lossy(&out.stderr));
+}
+
+fn render(dir: &Path, name: &str, extra: &[&str]) -> Output {
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(scenes_dir().join("cornell.toml")).arg("-o").arg(dir.join(name));
+    cmd.args(["-q", "--no-cache", "--size", "32x24", "--spp", "2"]).args(extra);
+    run_with_timeout(&mut cmd, Duration::from_secs(120))
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn tls_and_token_refusals_are_clear_and_the_worker_keeps_serving() {
+    let dir = temp_dir("tls", "refusals");
+    let (good, other) = (dir.join("good"), dir.join("other"));
+    certs(&good, &["127.0.0.1"]);
+    certs(&other, &["127.0.0.1"]);
+    let (token, wrong) = (dir.join("token"), dir.join("wrong"));
+    std::fs::write(&token, "lab-secret\n").unwrap();
+    std::fs::write(&wrong, "not-the-secret").unwrap();
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+    let (cert, key, ca) = (s(&good.join("127.0.0.1.pem")), s(&good.join("127.0.0.1.key")), s(&good.join("ca.pem")));
+    let w = WorkerProcess::start(&["--tls-cert", &cert, "--tls-key", &key, "--token-file", &s(&token)]);
+    let port = w.addr.rsplit(':').next().unwrap().to_owned();
+    let ok = |name: &str| render(&dir, name, &["--workers", &w.addr, "--tls-ca", &ca, "--token-file", &s(&token)]);
+
+    let o = ok("a.exr");
+    assert!(o.status.success(), "{}", stderr(&o));
+    // The in-process render of the same job gives the same bytes: TLS changes the wire, not the pixels.
+    let o = render(&dir, "b.exr", &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(dir.join("a.exr")).unwrap(), std::fs::read(dir.join("b.exr")).unwrap());
+
+    let refusals: [(&str, Vec<String>, &str); 4] = [
+        ("plaintext", vec!["--token-file".into(), s(&token)], "give the coordinator --tls-ca"),
+        (
+            "other authority",
+            vec!["--tls-ca".into(), s(&other.join("ca.pem")), "--token-file".into(), s(&token)],
+            "invalid peer certificate",
+        ),
+        ("no token", vec!["--tls-ca".into(), ca.clone()], "requires a token"),
+        ("wrong token", vec!["--tls-ca".into(), ca.clone(), "--token-file".into(), s(&wrong)], "wrong token"),
+    ];
+    for (case, args, expect) in refusals {
+        let mut all = vec!["--workers".to_owned(), w.addr.clone()];
+        all.extend(args);
+        let all: Vec<&str> = all.iter().map(String::as_str).collect();
+        let o = render(&dir, "x.exr", &all);
+        assert!(!o.status.success(), "{case}: rendered");
+        assert!(stderr(&o).contains(expect), "{case}: expected `{expect}` in:\n{}", stderr(&o));
+    }
+    // Another name for the same worker: its certificate names 127.0.0.1 only.
+    let o = render(
+        &dir,
+        "y.exr",
+        &["--workers", &format!("localhost:{port}"), "--tls-ca", &ca, "--token-file", &s(&token)],
+    );
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("not valid for name"), "{}", stderr(&o));
+    // Still serving.
+    let o = ok("c.exr");
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    // TLS towards a plaintext worker.
+    let plain = WorkerProcess::start(&[]);
+    let o = render(&dir, "z.exr", &["--workers", &plain.addr, "--tls-ca", &ca]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("drop --tls-ca"), "{}", stderr(&o));
+}
+
+#[test]
+fn plaintext_beyond_loopback_warns() {
+    let w = WorkerProcess::start_on("0.0.0.0:0", &[]);
+    w.wait_for_log("TLS is off", 1, Duration::from_secs(20));
+}
