@@ -116,6 +116,14 @@ fn corrupted_pixels_are_caught_and_rendered_again() {
     let all = text(&o);
     assert_eq!(all.matches("checksum mismatch").count(), 2, "{all}");
     assert!(bits(&out) == want, "a corrupted strip reached the image");
+    // A worker that keeps corrupting is dropped after 3 bad strips, with the reason; a good one finishes.
+    let hopeless = WorkerProcess::start(&["--threads", "1", "--test-corrupt-strips", "1000"]);
+    let good = WorkerProcess::start(&["--threads", "1"]);
+    let o = render(&out, QUICK, &["--workers", &workers_arg(&[&hopeless, &good])]);
+    assert!(o.status.success(), "{}", text(&o));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains(&format!("worker {} dropped: 3 counted failures", hopeless.addr)), "{}", text(&o));
+    assert!(bits(&out) == want, "a corrupted strip reached the image");
 }
 
 #[test]
