@@ -294,13 +294,16 @@ fn status_line(s: &tonic::Status) -> String {
 
 /// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
 pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), String> {
-    let hello = client
-        .hello(pb::HelloRequest {
-            protocol_version: photon_proto::PROTOCOL_VERSION,
-            build_id: photon_proto::BUILD_ID.to_owned(),
-            crate_version: photon_proto::CRATE_VERSION.to_owned(),
-        })
+    let request = pb::HelloRequest {
+        protocol_version: photon_proto::PROTOCOL_VERSION,
+        build_id: photon_proto::BUILD_ID.to_owned(),
+        crate_version: photon_proto::CRATE_VERSION.to_owned(),
+    };
+    // A peer that accepts the connection and never answers must not hang the render.
+    let silent = || format!("no answer to hello within {} s", ANSWER_TIMEOUT.as_secs());
+    let hello = tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))
         .await
+        .map_err(|_| silent())?
         .map_err(|s| {
             // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer.
             let hint = match s.code() {
@@ -313,9 +316,9 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
         })?
         .into_inner();
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
-    let missing = client
-        .missing_blobs(pb::MissingBlobsRequest { ids })
+    let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
         .await
+        .map_err(|_| format!("no answer to the blob list within {} s", ANSWER_TIMEOUT.as_secs()))?
         .map_err(|s| format!("listing blobs: {}", status_line(&s)))?
         .into_inner()
         .missing;
@@ -336,28 +339,30 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
     Ok((hello, shipped))
 }
 
-/// Uploads one blob in chunks of at most [`photon_proto::MAX_CHUNK`] bytes.
+/// Uploads one blob in chunks of at most [`photon_proto::MAX_CHUNK`] bytes, copied one at a time as the stream
+/// is sent. Allowed [`ANSWER_TIMEOUT`] plus a second per MiB (1 MiB/s is a very slow link).
 pub async fn put_blob(client: &mut Client, id: &str, blob: Arc<Vec<u8>>) -> Result<u64, String> {
     let header = pb::BlobHeader { id: id.to_owned(), size: blob.len() as u64 };
-    let chunks = chunk_messages(header, blob);
-    let reply = client
-        .put_blob(tokio_stream::iter(chunks))
+    let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
+    let reply = tokio::time::timeout(limit, client.put_blob(tokio_stream::iter(chunk_messages(header, blob))))
         .await
+        .map_err(|_| format!("shipping blob {id} took longer than {} s", limit.as_secs()))?
         .map_err(|s| format!("shipping blob {id}: {}", status_line(&s)))?;
     Ok(reply.into_inner().stored)
 }
 
-/// The upload messages of a blob: the header rides with the first chunk.
-pub fn chunk_messages(header: pb::BlobHeader, blob: Arc<Vec<u8>>) -> Vec<pb::BlobChunk> {
+/// How long a worker may take to answer a short call (hello, the blob list).
+pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The upload messages of a blob, made lazily: the header rides with the first chunk.
+pub fn chunk_messages(header: pb::BlobHeader, blob: Arc<Vec<u8>>) -> impl Iterator<Item = pb::BlobChunk> {
     let n = blob.len().div_ceil(photon_proto::MAX_CHUNK).max(1);
     let mut header = Some(header);
-    (0..n)
-        .map(|i| {
-            let lo = i * photon_proto::MAX_CHUNK;
-            let hi = (lo + photon_proto::MAX_CHUNK).min(blob.len());
-            pb::BlobChunk { header: header.take(), data: blob[lo..hi].to_vec() }
-        })
-        .collect()
+    (0..n).map(move |i| {
+        let lo = i * photon_proto::MAX_CHUNK;
+        let hi = (lo + photon_proto::MAX_CHUNK).min(blob.len());
+        pb::BlobChunk { header: header.take(), data: blob[lo..hi].to_vec() }
+    })
 }
 
 /// What a strip task reports.
