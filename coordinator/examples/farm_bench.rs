@@ -29,8 +29,8 @@ fn job_of(prep: &Prepared) -> Job {
         prep.encode_scene().expect("scene"),
         prep.encode_photons().expect("photons"),
         prep.encode_frame().expect("frame"),
-        prep.camera.width,
-        prep.camera.height,
+        (prep.camera.width, prep.camera.height),
+        &prep.settings,
     )
 }
 

@@ -39,11 +39,20 @@ pub struct Job {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
+    /// Whether the method is progressive photon mapping, whose strips each need every pass's photons: it gets
+    /// fewer, taller strips ([`crate::scheduler::rows_per_strip_progressive`]).
+    pub progressive: bool,
 }
 
 impl Job {
-    /// A job from the encoded parts of a prepared scene.
-    pub fn new(scene: Vec<u8>, photons: Option<Vec<u8>>, frame: Vec<u8>, width: u32, height: u32) -> Self {
+    /// A job from the encoded parts of a prepared scene, rendered with `settings`.
+    pub fn new(
+        scene: Vec<u8>,
+        photons: Option<Vec<u8>>,
+        frame: Vec<u8>,
+        (width, height): (u32, u32),
+        settings: &photon_core::scene::RenderSettings,
+    ) -> Self {
         let mut blobs = BTreeMap::new();
         let scene_blob = photon_proto::blob_id(&scene);
         blobs.insert(scene_blob.clone(), Arc::new(scene));
@@ -52,7 +61,8 @@ impl Job {
             blobs.insert(id.clone(), Arc::new(p));
             id
         });
-        Self { scene_blob, photons_blob, blobs, frame, width, height }
+        let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
+        Self { scene_blob, photons_blob, blobs, frame, width, height, progressive }
     }
 
     /// A fingerprint of everything that decides the pixels: the blobs, the frame and the size. A partial file
@@ -98,7 +108,8 @@ pub struct Options {
     pub token: Option<String>,
     /// TLS: the PEM certificate authority that signed the workers' certificates (plaintext when `None`).
     pub tls_ca: Option<Vec<u8>>,
-    /// Rows per strip (default: [`crate::scheduler::rows_per_strip_for`]).
+    /// Rows per strip (default: [`crate::scheduler::rows_per_strip_for`], or
+    /// [`crate::scheduler::rows_per_strip_progressive`] for progressive photon mapping).
     pub rows_per_strip: Option<u32>,
     /// The scheduling policy.
     pub policy: Policy,
@@ -468,11 +479,12 @@ struct Member {
 pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Result<Outcome, FarmError> {
     let t0 = Instant::now();
     let width = job.width;
-    let rows_per_strip = match &options.resume {
-        Some(p) => p.rows_per_strip,
-        None => options
-            .rows_per_strip
-            .unwrap_or_else(|| crate::scheduler::rows_per_strip_for(job.height, workers.len() as u32)),
+    let n = workers.len() as u32;
+    let rows_per_strip = match (&options.resume, options.rows_per_strip) {
+        (Some(p), _) => p.rows_per_strip,
+        (None, Some(r)) => r,
+        (None, None) if job.progressive => crate::scheduler::rows_per_strip_progressive(job.height, n),
+        (None, None) => crate::scheduler::rows_per_strip_for(job.height, n),
     };
     let mut sched = Scheduler::with_policy(job.height, rows_per_strip, options.policy.clone());
     let mut image = vec![0.0f32; 3 * width as usize * job.height as usize];

@@ -5,7 +5,7 @@ use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use photon_coordinator::prepared_cache::{self, PreparedCache};
 use photon_coordinator::sweep::{self, sig};
-use photon_coordinator::{farm, fleet, scheduler};
+use photon_coordinator::{farm, fleet};
 use photon_core::image_io::{Format, Image};
 use photon_core::metrics::{self, Metrics, Region};
 use photon_core::prepare::Prepared;
@@ -357,13 +357,8 @@ fn render(args: RenderArgs) -> Result<()> {
         resume,
         progress: !args.quiet,
     };
-    let progressive = settings.integrator == Integrator::Progressive;
     let outcome = runtime()?.block_on(async {
         let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
-        let mut options = options;
-        if progressive && options.rows_per_strip.is_none() {
-            options.rows_per_strip = Some(scheduler::rows_per_strip_progressive(height, fleet.addrs.len() as u32));
-        }
         let outcome = farm::render(&job, &fleet.addrs, options).await;
         let in_process = fleet.is_in_process();
         fleet.stop().await;
@@ -408,17 +403,17 @@ fn render(args: RenderArgs) -> Result<()> {
     } else {
         format!("{} spp", settings.spp)
     };
-    let mut resumed = if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
+    let mut extras = if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
     if let Some(h) = hits {
         let word = |hit: bool| if hit { "cached" } else { "built" };
-        resumed.push_str(&format!(", scene {}", word(h.scene)));
+        extras.push_str(&format!(", scene {}", word(h.scene)));
         if settings.integrator.needs_photon_maps() {
-            resumed.push_str(&format!(", photons {}", word(h.photons)));
+            extras.push_str(&format!(", photons {}", word(h.photons)));
         }
     }
     println!(
         "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare, {:.2} s ship, {:.2} s assemble), \
-         {:.2} Mrays/s, {} blob bytes shipped{resumed}",
+         {:.2} Mrays/s, {} blob bytes shipped{extras}",
         args.output.display(),
         settings.integrator,
         outcome.render_s,
@@ -446,7 +441,7 @@ fn prepare_job(
         let prep = Prepared::new(scene, scene_path)?;
         let scene_blob = prep.encode_scene().context("encoding the scene")?;
         let photons = prep.encode_photons().context("encoding the photon maps")?;
-        return Ok((farm::Job::new(scene_blob, photons, frame, width, height), None));
+        return Ok((farm::Job::new(scene_blob, photons, frame, (width, height), &settings), None));
     };
     let keys = PreparedCache::keys(scene).map_err(anyhow::Error::msg)?;
     let needs_photons = settings.integrator.needs_photon_maps();
@@ -480,7 +475,7 @@ fn prepare_job(
             bytes
         }
     };
-    Ok((farm::Job::new(scene_blob, photons, frame, width, height), Some(hits)))
+    Ok((farm::Job::new(scene_blob, photons, frame, (width, height), &settings), Some(hits)))
 }
 
 /// Where an interrupted render keeps its finished strips.

@@ -124,13 +124,11 @@ pub async fn render_timed(
     let t0 = Instant::now();
     let prep = Prepared::new(scene, scene_path)?;
     let (width, height) = (prep.camera.width, prep.camera.height);
-    let job = crate::farm::Job::new(prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?, width, height);
+    let (scene_blob, photons, frame) = (prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?);
+    let job = crate::farm::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
     drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let rows_per_strip = (scene.render.integrator == Integrator::Progressive)
-        .then(|| crate::scheduler::rows_per_strip_progressive(height, addrs.len() as u32));
-    let options = crate::farm::Options { rows_per_strip, ..options };
     let outcome = crate::farm::render(&job, addrs, options).await?;
     let render_s = t1.elapsed().as_secs_f64();
     Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s })
