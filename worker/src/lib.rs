@@ -140,11 +140,6 @@ impl Worker {
     pub fn threads(&self) -> usize {
         self.pool.current_num_threads()
     }
-
-    /// The blob cache (the coordinator's in-process worker reads its statistics).
-    pub fn blobs(&self) -> &Arc<BlobCache> {
-        &self.blobs
-    }
 }
 
 /// Serves `worker` on `listener` until `shutdown` resolves; strips in progress are cancelled then.
