@@ -7,6 +7,7 @@
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
 use photon_core::bvh::Bvh;
+use photon_core::fmath;
 use photon_core::geometry::{Aabb, Geometry, NONE, Primitive, Ray};
 use photon_core::rng::{Domain, Sampler};
 use photon_core::shapes::{Shape, Triangle};
@@ -18,8 +19,10 @@ fn displaced_sphere(rows: usize, cols: usize) -> Vec<Triangle> {
     let vertex = |i: usize, j: usize| {
         let theta = std::f32::consts::PI * i as f32 / rows as f32;
         let phi = 2.0 * std::f32::consts::PI * j as f32 / cols as f32;
-        let r = 1.0 + 0.08 * (7.0 * theta).sin() * (9.0 * phi).sin() + 0.02 * (41.0 * theta).sin() * (37.0 * phi).cos();
-        r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin())
+        let r = 1.0
+            + 0.08 * fmath::sin(7.0 * theta) * fmath::sin(9.0 * phi)
+            + 0.02 * fmath::sin(41.0 * theta) * fmath::cos(37.0 * phi);
+        r * Vec3::new(fmath::sin(theta) * fmath::cos(phi), fmath::cos(theta), fmath::sin(theta) * fmath::sin(phi))
     };
     let mut tris = Vec::with_capacity(2 * rows * cols);
     for i in 0..rows {
@@ -35,16 +38,16 @@ fn displaced_sphere(rows: usize, cols: usize) -> Vec<Triangle> {
 /// Rays of a `w × h` pinhole camera at `(0, 0.3, 3)` looking at the origin with a 45° vertical field of view.
 fn camera_rays(w: usize, h: usize) -> Vec<Ray> {
     let o = Vec3A::new(0.0, 0.3, 3.0);
-    let fwd = (-o).normalize();
-    let right = fwd.cross(Vec3A::Y).normalize();
-    let up = right.cross(fwd);
-    let tan = (22.5f32).to_radians().tan();
+    let fwd = fmath::normalize(-o);
+    let right = fmath::normalize(fmath::cross(fwd, Vec3A::Y));
+    let up = fmath::cross(right, fwd);
+    let tan = fmath::tan((22.5f32).to_radians());
     let mut rays = Vec::with_capacity(w * h);
     for y in 0..h {
         for x in 0..w {
             let sx = (2.0 * (x as f32 + 0.5) / w as f32 - 1.0) * tan * w as f32 / h as f32;
             let sy = (1.0 - 2.0 * (y as f32 + 0.5) / h as f32) * tan;
-            rays.push(Ray::new(o, (fwd + sx * right + sy * up).normalize()));
+            rays.push(Ray::new(o, fmath::normalize(fwd + sx * right + sy * up)));
         }
     }
     rays

@@ -5,6 +5,7 @@
 //! `cargo bench -p photon-core --bench photon_map`; it also prints the map's bytes per photon.
 #![allow(clippy::unwrap_used, reason = "a benchmark whose setup fails should stop at once, like a test")]
 
+use photon_core::fmath;
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -37,7 +38,7 @@ fn cornell_photons(count: usize) -> Vec<Photon> {
     (0..count)
         .map(|i| {
             let (p, n) = wall_point(&mut s);
-            let wi = (n + photon_core::math::uniform_sphere(s.next_2d()) * 0.9).normalize();
+            let wi = fmath::normalize(n + photon_core::math::uniform_sphere(s.next_2d()) * 0.9);
             Photon::new(p, wi, n, phi, (i % 5) as u32)
         })
         .collect()

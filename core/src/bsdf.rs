@@ -22,6 +22,7 @@
 //! - Lambert and Phong are reciprocal, `f(wo, wi) = f(wi, wo)`; the transport mode does not change them.
 
 use crate::Rgb;
+use crate::fmath;
 use crate::math::{Frame, cosine_hemisphere, fresnel_dielectric, luminance, refract};
 use glam::{Vec2, Vec3A};
 use std::f32::consts::{FRAC_1_PI, PI};
@@ -354,7 +355,7 @@ fn flip_to(w: Vec3A, wo: Vec3A) -> Vec3A {
 #[inline]
 fn phong_cos_pow(wo: Vec3A, wi: Vec3A, n: f32) -> f32 {
     let d2 = Vec3A::new(wi.x + wo.x, wi.y + wo.y, wi.z - wo.z).length_squared();
-    if d2 >= 2.0 { 0.0 } else { (n * (-0.5 * d2).ln_1p()).exp() }
+    if d2 >= 2.0 { 0.0 } else { fmath::exp(n * fmath::ln_1p(-0.5 * d2)) }
 }
 
 /// Probability of sampling the glossy Phong lobe: its share of the luminance of `kd + ks`.
@@ -374,10 +375,10 @@ fn phong_lobe_pdf(wo: Vec3A, wi: Vec3A, n: f32) -> f32 {
 #[inline]
 fn sample_phong_lobe(wo: Vec3A, n: f32, u2: Vec2) -> Vec3A {
     let r = Vec3A::new(-wo.x, -wo.y, wo.z);
-    let cos_a = u2.x.powf(1.0 / (n + 1.0));
+    let cos_a = fmath::powf(u2.x, 1.0 / (n + 1.0));
     let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
     let phi = 2.0 * PI * u2.y;
-    Frame::from_normal(r).to_world(Vec3A::new(sin_a * phi.cos(), sin_a * phi.sin(), cos_a))
+    Frame::from_normal(r).to_world(Vec3A::new(sin_a * fmath::cos(phi), sin_a * fmath::sin(phi), cos_a))
 }
 
 #[cfg(test)]
@@ -385,7 +386,7 @@ mod tests {
     use super::*;
 
     fn dir(theta: f32, phi: f32) -> Vec3A {
-        Vec3A::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+        Vec3A::new(fmath::sin(theta) * fmath::cos(phi), fmath::sin(theta) * fmath::sin(phi), fmath::cos(theta))
     }
 
     #[test]

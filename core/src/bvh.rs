@@ -394,6 +394,7 @@ fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath;
 
     fn cube(c: Vec3, h: f32) -> Aabb {
         Aabb { min: c - Vec3::splat(h), max: c + Vec3::splat(h) }
@@ -452,7 +453,7 @@ mod tests {
         assert!(bvh.depth() <= 10, "median splits keep identical boxes balanced: depth {}", bvh.depth());
         // Every primitive is reached exactly once by a ray through the box.
         let mut seen = vec![0u32; n];
-        bvh.closest_hit(Vec3A::ZERO, Vec3A::ONE.normalize(), f32::INFINITY, |p, _| {
+        bvh.closest_hit(Vec3A::ZERO, fmath::normalize(Vec3A::ONE), f32::INFINITY, |p, _| {
             seen[p as usize] += 1;
             None
         });
@@ -500,7 +501,7 @@ mod tests {
         let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
         let b: Vec<Aabb> = (0..500).map(|_| cube(10.0 * v(), 0.2 * v().x)).collect();
         let rays: Vec<(Vec3A, Vec3A)> =
-            (0..2000).map(|_| (Vec3A::from(12.0 * v() - 1.0), Vec3A::from(v() - 0.5).normalize())).collect();
+            (0..2000).map(|_| (Vec3A::from(12.0 * v() - 1.0), fmath::normalize(Vec3A::from(v() - 0.5)))).collect();
         let (bvh, order) = Bvh::build(&b);
         let b: Vec<Aabb> = order.iter().map(|&i| b[i as usize]).collect();
         for (o, d) in rays {

@@ -11,6 +11,7 @@
 //! aperture = 0.0         # lens radius; 0 is a pinhole
 //! ```
 
+use crate::fmath;
 use crate::geometry::Ray;
 use crate::scene::CameraSpec;
 use glam::{Vec2, Vec3A};
@@ -39,10 +40,10 @@ impl Camera {
     /// A camera from its scene description (already validated).
     pub fn new(spec: &CameraSpec) -> Self {
         let eye = Vec3A::from(spec.eye);
-        let forward = (Vec3A::from(spec.look_at) - eye).normalize();
-        let right = forward.cross(Vec3A::from(spec.up)).normalize();
-        let up = right.cross(forward);
-        let half_h = (spec.fov.to_radians() * 0.5).tan();
+        let forward = fmath::normalize(Vec3A::from(spec.look_at) - eye);
+        let right = fmath::normalize(fmath::cross(forward, Vec3A::from(spec.up)));
+        let up = fmath::cross(right, forward);
+        let half_h = fmath::tan(spec.fov.to_radians() * 0.5);
         let half_w = half_h * spec.width as f32 / spec.height as f32;
         let focus = spec.focus_distance.unwrap_or_else(|| (spec.look_at - spec.eye).length());
         Self {
@@ -65,7 +66,7 @@ impl Camera {
     pub fn ray(&self, film: Vec2, lens: Vec2) -> Ray {
         let sx = (2.0 * film.x / self.width as f32 - 1.0) * self.half_w;
         let sy = (1.0 - 2.0 * film.y / self.height as f32) * self.half_h;
-        let d = (self.forward + sx * self.right + sy * self.up).normalize();
+        let d = fmath::normalize(self.forward + sx * self.right + sy * self.up);
         if self.lens_radius <= 0.0 {
             return Ray::new(self.eye, d);
         }
@@ -73,7 +74,7 @@ impl Camera {
         let focus_point = self.eye + d * (self.focus / d.dot(self.forward));
         let l = crate::math::concentric_disk(lens) * self.lens_radius;
         let o = self.eye + l.x * self.right + l.y * self.up;
-        Ray::new(o, (focus_point - o).normalize())
+        Ray::new(o, fmath::normalize(focus_point - o))
     }
 
     /// The eye position.

@@ -1,6 +1,7 @@
 //! Images: linear f32 RGB in memory; OpenEXR (linear, for analysis) or, tone-mapped, PNG, PPM (P6) and BMP
 //! on disk. The format comes from the file extension.
 
+use crate::fmath;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
@@ -64,7 +65,7 @@ impl Format {
 /// The sRGB transfer curve of a linear value in [0, 1].
 #[inline]
 pub fn srgb_encode(x: f32) -> f32 {
-    if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * x.powf(1.0 / 2.4) - 0.055 }
+    if x <= 0.003_130_8 { 12.92 * x } else { 1.055 * fmath::powf(x, 1.0 / 2.4) - 0.055 }
 }
 
 impl Image {

@@ -20,6 +20,7 @@ pub mod bsdf;
 pub mod bvh;
 pub mod camera;
 pub mod codec;
+pub mod fmath;
 pub mod geometry;
 pub mod image_io;
 pub mod integrator;

@@ -432,6 +432,7 @@ fn validate_eta(eta: f32) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fmath;
     use std::collections::BTreeMap;
 
     #[derive(Debug, Deserialize, Serialize, PartialEq)]
@@ -575,7 +576,7 @@ mod tests {
     fn bsdf_evaluates_textures_and_keeps_both_normals() {
         use crate::bsdf::TransportMode;
         use crate::geometry::{NONE, PrimRef};
-        let ns = Vec3A::new(0.1, 0.0, 1.0).normalize();
+        let ns = fmath::normalize(Vec3A::new(0.1, 0.0, 1.0));
         let hit = Hit {
             t: 1.0,
             p: Vec3A::new(1.0, 2.0, 3.0),

@@ -1,6 +1,7 @@
 //! Small geometric helpers: orthonormal frames, robust ray offsets, sampling warps, reflection, refraction and
 //! the Fresnel equations.
 
+use crate::fmath;
 use glam::{Vec2, Vec3A};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
@@ -78,7 +79,7 @@ pub fn uniform_sphere(u: Vec2) -> Vec3A {
     let z = 1.0 - 2.0 * u.x;
     let r = (1.0 - z * z).max(0.0).sqrt();
     let phi = 2.0 * PI * u.y;
-    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+    Vec3A::new(r * fmath::cos(phi), r * fmath::sin(phi), z)
 }
 
 /// Shirley–Chiu concentric map of the unit square onto the unit disc (area preserving).
@@ -90,7 +91,7 @@ pub fn concentric_disk(u: Vec2) -> Vec2 {
     }
     let (r, theta) =
         if o.x.abs() > o.y.abs() { (o.x, FRAC_PI_4 * (o.y / o.x)) } else { (o.y, FRAC_PI_2 - FRAC_PI_4 * (o.x / o.y)) };
-    r * Vec2::new(theta.cos(), theta.sin())
+    r * Vec2::new(fmath::cos(theta), fmath::sin(theta))
 }
 
 /// Uniform point on a triangle as barycentrics (b1, b2) (Heitz's low-distortion map is not needed here).
@@ -157,7 +158,7 @@ mod tests {
 
     #[test]
     fn frame_is_orthonormal() {
-        for n in [Vec3A::Z, -Vec3A::Z, Vec3A::X, Vec3A::new(0.3, -0.5, 0.81).normalize()] {
+        for n in [Vec3A::Z, -Vec3A::Z, Vec3A::X, fmath::normalize(Vec3A::new(0.3, -0.5, 0.81))] {
             let f = Frame::from_normal(n);
             assert!(f.s.dot(f.t).abs() < 1e-6 && f.s.dot(f.n).abs() < 1e-6 && f.t.dot(f.n).abs() < 1e-6);
             assert!((f.s.length() - 1.0).abs() < 1e-6 && (f.t.length() - 1.0).abs() < 1e-6);
@@ -170,23 +171,24 @@ mod tests {
     fn fresnel_normal_incidence_and_total_internal_reflection() {
         assert!((fresnel_dielectric(1.0, 1.5) - 0.04).abs() < 1e-6);
         // Leaving glass: critical angle asin(1/1.5) ≈ 41.8°.
-        let critical = (1.0f32 / 1.5).asin();
-        assert_eq!(fresnel_dielectric((critical + 0.01).cos(), 1.0 / 1.5), 1.0);
-        assert!(fresnel_dielectric((critical - 0.01).cos(), 1.0 / 1.5) < 1.0);
+        let critical = fmath::asin(1.0f32 / 1.5);
+        assert_eq!(fresnel_dielectric(fmath::cos(critical + 0.01), 1.0 / 1.5), 1.0);
+        assert!(fresnel_dielectric(fmath::cos(critical - 0.01), 1.0 / 1.5) < 1.0);
         assert!(
-            refract(Vec3A::new((critical + 0.01).sin(), 0.0, (critical + 0.01).cos()), Vec3A::Z, 1.0 / 1.5).is_none()
+            refract(Vec3A::new(fmath::sin(critical + 0.01), 0.0, fmath::cos(critical + 0.01)), Vec3A::Z, 1.0 / 1.5)
+                .is_none()
         );
     }
 
     #[test]
     fn refraction_obeys_snell() {
         let theta_i = 0.6f32;
-        let wo = Vec3A::new(theta_i.sin(), 0.0, theta_i.cos());
+        let wo = Vec3A::new(fmath::sin(theta_i), 0.0, fmath::cos(theta_i));
         let wt = refract(wo, Vec3A::Z, 1.5).unwrap();
         assert!((wt.length() - 1.0).abs() < 1e-5);
         assert!(wt.z < 0.0);
         let sin_t = (wt.x * wt.x + wt.y * wt.y).sqrt();
-        assert!((theta_i.sin() - 1.5 * sin_t).abs() < 1e-5);
+        assert!((fmath::sin(theta_i) - 1.5 * sin_t).abs() < 1e-5);
     }
 
     #[test]

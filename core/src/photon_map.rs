@@ -41,6 +41,7 @@
 //! A skipped photon still counts towards `k`, and the radius stays what the gather found: the density is
 //! per unit area of the disc around `p`, and skipped photons simply belong to some other surface.
 
+use crate::fmath;
 use std::num::NonZeroUsize;
 use std::sync::Arc;
 
@@ -119,7 +120,7 @@ pub fn unpack_unit(u: u32) -> Vec3A {
     let (x, y) = (dequantise(u), dequantise(u >> 16));
     let z = 1.0 - x.abs() - y.abs();
     let t = (-z).max(0.0);
-    Vec3A::new(x - t * sign_not_zero(x), y - t * sign_not_zero(y), z).normalize()
+    fmath::normalize(Vec3A::new(x - t * sign_not_zero(x), y - t * sign_not_zero(y), z))
 }
 
 #[inline]
@@ -446,7 +447,7 @@ impl Kernel {
             Kernel::Box => FRAC_1_PI,
             Kernel::Cone => 3.0 * FRAC_1_PI * (1.0 - t2.sqrt()),
             Kernel::Epanechnikov => 2.0 * FRAC_1_PI * (1.0 - t2),
-            Kernel::Gaussian => GAUSS_NORM * (1.0 - GAUSS_C * (1.0 - (-GAUSS_HALF_BETA * t2).exp())),
+            Kernel::Gaussian => GAUSS_NORM * (1.0 - GAUSS_C * (1.0 - fmath::exp(-GAUSS_HALF_BETA * t2))),
             Kernel::Linear => LINEAR_NORM / (1.0 + t2.sqrt()),
             Kernel::Quadratic => {
                 let s = 1.0 + t2.sqrt();
@@ -544,7 +545,7 @@ mod tests {
             let back = unpack_unit(pack_unit(v));
             assert!((back.length() - 1.0).abs() < 1e-6);
             // The angle from the cross product's length is accurate for tiny angles, unlike acos.
-            worst = worst.max(v.cross(back).length().atan2(v.dot(back)));
+            worst = worst.max(fmath::atan2(fmath::cross(v, back).length(), v.dot(back)));
         }
         // Rounding moves each octahedral coordinate by at most e = 1/65534 (half a step over [-1, 1]). The
         // point q = (x, y, 1 - |x| - |y|) then moves by at most √6·e, and q/|q| by at most that over

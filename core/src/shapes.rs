@@ -11,6 +11,7 @@
 //! tested separately (see [`crate::geometry`]). Each shape answers the distance of the closest hit (`intersect`)
 //! and, for that hit only, the surface data (`surface`).
 
+use crate::fmath;
 use crate::geometry::{Aabb, Ray};
 use glam::{Vec2, Vec3, Vec3A, Vec3Swizzles};
 use serde::{Deserialize, Serialize};
@@ -110,11 +111,11 @@ impl Sphere {
 
     fn local_hit(&self, p: Vec3A) -> LocalHit {
         let c = Vec3A::from(self.center);
-        let n = (p - c).normalize();
+        let n = fmath::normalize(p - c);
         // Re-project onto the surface so the offset origin of the next ray is reliable.
         let p = c + n * self.radius;
-        let u = 0.5 + n.z.atan2(n.x) / (2.0 * std::f32::consts::PI);
-        let v = n.y.clamp(-1.0, 1.0).acos() / std::f32::consts::PI;
+        let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
+        let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
         LocalHit { p, n, uv: Vec2::new(u, v) }
     }
 }
@@ -134,7 +135,7 @@ impl Rect {
 
     /// Unit normal.
     pub fn normal(&self) -> Vec3A {
-        Vec3A::from(self.u.cross(self.v)).normalize()
+        fmath::normalize(Vec3A::from(self.u.cross(self.v)))
     }
 
     /// Area.
@@ -147,7 +148,7 @@ impl Rect {
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
         let u = Vec3A::from(self.u);
         let v = Vec3A::from(self.v);
-        let nn = u.cross(v);
+        let nn = fmath::cross(u, v);
         let denom = nn.dot(ray.d);
         if denom == 0.0 {
             return None;
@@ -193,7 +194,7 @@ impl Triangle {
     pub fn normal(&self) -> Vec3A {
         let e1 = Vec3A::from(self.p[1] - self.p[0]);
         let e2 = Vec3A::from(self.p[2] - self.p[0]);
-        e1.cross(e2).normalize_or_zero()
+        fmath::cross(e1, e2).normalize_or_zero()
     }
 
     /// Area.
@@ -281,7 +282,7 @@ impl Triangle {
         // A zero-area triangle can still get a tiny non-zero determinant from the rounding of the translation and
         // shear. Checked last, as few tests get this far.
         let v0 = Vec3A::from(p0);
-        if (Vec3A::from(p1) - v0).cross(Vec3A::from(p2) - v0) == Vec3A::ZERO {
+        if fmath::cross(Vec3A::from(p1) - v0, Vec3A::from(p2) - v0) == Vec3A::ZERO {
             return None;
         }
         Some((t, e.y * inv_det, e.z * inv_det))
@@ -420,7 +421,7 @@ mod tests {
     use super::*;
 
     fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
-        Ray::new(Vec3A::from_array(o), Vec3A::from_array(d).normalize())
+        Ray::new(Vec3A::from_array(o), fmath::normalize(Vec3A::from_array(d)))
     }
 
     #[test]
@@ -479,7 +480,7 @@ mod tests {
         let ring: Vec<Vec3> = (0..6)
             .map(|i| {
                 let a = i as f32 * std::f32::consts::FRAC_PI_3 + 0.1;
-                c + Vec3::new(a.cos(), a.sin(), 0.4 * (2.0 * a).sin())
+                c + Vec3::new(fmath::cos(a), fmath::sin(a), 0.4 * fmath::sin(2.0 * a))
             })
             .collect();
         let fan: Vec<Triangle> = (0..6).map(|i| Triangle::new(c, ring[i], ring[(i + 1) % 6])).collect();

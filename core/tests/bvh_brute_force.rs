@@ -4,6 +4,7 @@
 
 use glam::{Vec3, Vec3A};
 use photon_core::bvh::Bvh;
+use photon_core::fmath;
 use photon_core::geometry::{Aabb, Geometry, NONE, Primitive, Ray};
 use photon_core::rng::{Domain, Sampler};
 use photon_core::shapes::{Shape, Triangle};
@@ -93,7 +94,7 @@ fn rays(seed: u64, n: usize, tris: &[Triangle]) -> Vec<Ray> {
             let z = 1.0 - 2.0 * u.x;
             let r = (1.0 - z * z).max(0.0).sqrt();
             let phi = 2.0 * std::f32::consts::PI * u.y;
-            Ray::new(o, Vec3A::new(r * phi.cos(), r * phi.sin(), z))
+            Ray::new(o, Vec3A::new(r * fmath::cos(phi), r * fmath::sin(phi), z))
         })
         .collect()
 }

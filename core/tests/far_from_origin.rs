@@ -5,6 +5,7 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::{Vec3, Vec3A};
+use photon_core::fmath;
 use photon_core::geometry::Ray;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
@@ -72,7 +73,7 @@ intensity = [4.0, 4.0, 4.0]
         let l = photon_core::integrator::li(
             &prep,
             &prep.settings,
-            Ray::new(eye, (p - eye).normalize()),
+            Ray::new(eye, fmath::normalize(p - eye)),
             &mut Sampler::for_pixel(1, i as u32, 0, 0),
             &mut rays,
         );

@@ -4,6 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::Vec3A;
+use photon_core::fmath;
 use photon_core::geometry::Ray;
 use photon_core::prepare::Prepared;
 use photon_core::rng::Sampler;
@@ -46,13 +47,13 @@ fn radiance_matches_the_analytic_value() {
         settings.integrator = integrator;
         for (i, target) in [[0.0, 0.0, 0.0], [1.5, 0.0, -2.0], [-2.0, 0.0, 1.0], [0.3, 0.0, -0.4]].iter().enumerate() {
             let p = Vec3A::from_array(*target);
-            let ray = Ray::new(eye, (p - eye).normalize());
+            let ray = Ray::new(eye, fmath::normalize(p - eye));
             let mut s = Sampler::for_pixel(1, i as u32, 0, 0);
             let mut rays = 0;
             let l = photon_core::integrator::li(&prep, &settings, ray, &mut s, &mut rays);
             let d = light - p;
             let r2 = d.length_squared();
-            let cos = d.normalize().y;
+            let cos = fmath::normalize(d).y;
             let expected = 0.5 / std::f32::consts::PI * intensity * cos / r2;
             let rel = ((l - expected) / expected).abs().max_element();
             assert!(rel < 0.01, "{integrator:?} at {p}: {l} vs {expected} ({rel})");

@@ -5,6 +5,7 @@
 use glam::Vec3A;
 use photon_core::Rgb;
 use photon_core::bsdf::{Bsdf, Bxdf};
+use photon_core::fmath;
 use photon_core::rng::{Domain, Sampler};
 
 /// The random stream of one test case.
@@ -14,7 +15,7 @@ pub fn sampler(test: u64, case: u64) -> Sampler {
 
 /// The unit direction at polar angle `theta` from +z and azimuth `phi`.
 pub fn dir(theta: f32, phi: f32) -> Vec3A {
-    Vec3A::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos())
+    Vec3A::new(fmath::sin(theta) * fmath::cos(phi), fmath::sin(theta) * fmath::sin(phi), fmath::cos(theta))
 }
 
 /// A BSDF on a surface whose geometric and shading normals are both +z.
