@@ -97,7 +97,8 @@ struct FarmArgs {
     /// Render on the workers of a host list (TOML: `[[worker]]` tables with `address` and an optional `name`).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["workers", "local"])]
     hosts: Option<PathBuf>,
-    /// Render on these workers, e.g. `lab-01:7878,lab-02:7878`.
+    /// Render on these workers, e.g. `lab-01:7878,lab-02:7878`; `dns:NAME:PORT` is every address NAME resolves
+    /// to (a Kubernetes headless Service: one per ready worker pod).
     #[arg(long, value_name = "HOST:PORT,...", conflicts_with = "local")]
     workers: Option<String>,
     /// Start N `photon-worker` processes on loopback (sharing this machine's cores) and render on them.
@@ -688,6 +689,7 @@ fn print_metrics(m: &Metrics) {
         (format!("relative MSE (eps {})", metrics::EPSILON), sig(m.rel_mse)),
         ("mean abs. relative error".to_owned(), sig(m.mare)),
         (format!("bias over {}", m.region), format!("{} ({rel})", sig(m.bias))),
+        ("largest difference".to_owned(), format!("{} ({} values differ)", sig(m.max_abs), m.differing)),
     ];
     for (label, value) in rows {
         println!("  {label:<26}{value}");

@@ -22,6 +22,7 @@
 //!
 //! Sums run in `f64` in pixel order, so the result is the same on every machine and thread count.
 
+use crate::fmath;
 use crate::image_io::Image;
 use std::fmt;
 
@@ -131,16 +132,21 @@ pub struct Metrics {
     pub bias: f64,
     /// `mean(x) / mean(r) − 1` over the region; `None` when the reference's mean there is zero.
     pub rel_bias: Option<f64>,
+    /// The largest `|x − r|` over all channels of all pixels.
+    pub max_abs: f64,
+    /// Channel values whose bits differ (0: the images are identical).
+    pub differing: u64,
 }
 
 impl Metrics {
-    /// One line of `key=value` pairs for scripts: `rmse=… rel_mse=… mare=… bias=… rel_bias=…`. Values are
+    /// One line of `key=value` pairs for scripts: `rmse=… rel_mse=… mare=… bias=… rel_bias=… region=…
+    /// max_abs=… differing=…`. Values are
     /// printed in full (shortest round-trip form); an undefined relative bias is `nan`.
     pub fn key_values(&self) -> String {
         let rel_bias = self.rel_bias.map_or_else(|| "nan".to_owned(), |b| b.to_string());
         format!(
-            "rmse={} rel_mse={} mare={} bias={} rel_bias={} region={}",
-            self.rmse, self.rel_mse, self.mare, self.bias, rel_bias, self.region
+            "rmse={} rel_mse={} mare={} bias={} rel_bias={} region={} max_abs={} differing={}",
+            self.rmse, self.rel_mse, self.mare, self.bias, rel_bias, self.region, self.max_abs, self.differing
         )
     }
 }
@@ -192,6 +198,7 @@ pub fn compare(a: &Image, reference: &Image, region: Option<Region>) -> Result<M
     }
     let (mut sq, mut rel_sq, mut abs_rel) = (0.0_f64, 0.0_f64, 0.0_f64);
     let (mut sum_x, mut sum_r) = (0.0_f64, 0.0_f64);
+    let (mut max_abs, mut differing) = (0.0_f64, 0_u64);
     for (i, (pa, pr)) in a.pixels.chunks_exact(3).zip(reference.pixels.chunks_exact(3)).enumerate() {
         let (x, y) = ((i % width as usize) as u32, (i / width as usize) as u32);
         let inside = (region.x0..region.x1).contains(&x) && (region.y0..region.y1).contains(&y);
@@ -201,6 +208,8 @@ pub fn compare(a: &Image, reference: &Image, region: Option<Region>) -> Result<M
             sq += d * d;
             rel_sq += d * d / (r * r + EPSILON);
             abs_rel += d.abs() / (r.abs() + EPSILON);
+            max_abs = max_abs.max(d.abs());
+            differing += u64::from(va.to_bits() != vr.to_bits());
             if inside {
                 sum_x += v;
                 sum_r += r;
@@ -217,6 +226,8 @@ pub fn compare(a: &Image, reference: &Image, region: Option<Region>) -> Result<M
         // Sum the region's values separately and subtract once: mean(x − r) = mean(x) − mean(r).
         bias: (sum_x - sum_r) / n_region,
         rel_bias: (sum_r != 0.0).then(|| sum_x / sum_r - 1.0),
+        max_abs,
+        differing,
     })
 }
 
@@ -236,7 +247,7 @@ const INFERNO: [[f32; 3]; 9] = [
 
 /// The linear value of an sRGB-encoded value in [0, 1] (the inverse of [`crate::image_io::srgb_encode`]).
 fn srgb_decode(v: f32) -> f32 {
-    if v <= 0.040_45 { v / 12.92 } else { ((v + 0.055) / 1.055).powf(2.4) }
+    if v <= 0.040_45 { v / 12.92 } else { fmath::powf((v + 0.055) / 1.055, 2.4) }
 }
 
 /// The ramp colour of `t` (clamped to [0, 1]; NaN counts as 1), in linear RGB. The ramp is interpolated in
@@ -288,7 +299,24 @@ mod tests {
         assert_eq!((m.rmse, m.rel_mse, m.mare, m.bias), (0.0, 0.0, 0.0, 0.0));
         assert_eq!(m.rel_bias, Some(0.0));
         assert_eq!(m.region, Region::full(2, 1));
-        assert_eq!(m.key_values(), "rmse=0 rel_mse=0 mare=0 bias=0 rel_bias=0 region=0,0,2,1");
+        assert_eq!((m.max_abs, m.differing), (0.0, 0));
+        assert_eq!(m.key_values(), "rmse=0 rel_mse=0 mare=0 bias=0 rel_bias=0 region=0,0,2,1 max_abs=0 differing=0");
+    }
+
+    /// One ulp in one channel and a larger error in another: both counted, the larger one is the largest.
+    #[test]
+    fn largest_difference_and_differing_values() {
+        let r = img(2, 1, &[0.5, 1.0, 0.0, 2.0, 0.25, 0.0]);
+        let mut a = r.clone();
+        a.pixels[1] = f32::from_bits(1.0f32.to_bits() + 1);
+        a.pixels[3] = 2.125;
+        let m = compare(&a, &r, None).unwrap();
+        assert_eq!((m.max_abs, m.differing), (0.125, 2));
+        // -0.0 and 0.0 are equal values with different bits: a difference of zero, counted as differing.
+        a.pixels = r.pixels.clone();
+        a.pixels[2] = -0.0;
+        let m = compare(&a, &r, None).unwrap();
+        assert_eq!((m.max_abs, m.differing), (0.0, 1));
     }
 
     #[test]

@@ -57,19 +57,19 @@ fn two_seeds_differ_and_an_image_matches_itself() {
     for key in ["rmse", "rel_mse", "mare", "bias", "rel_bias"] {
         assert!(number(&kv, key).is_finite(), "{key} = {}", kv[key]);
     }
-    for key in ["rmse", "rel_mse", "mare"] {
+    for key in ["rmse", "rel_mse", "mare", "max_abs", "differing"] {
         assert!(number(&kv, key) > 0.0, "different seeds gave {key} = 0");
     }
     assert_eq!(kv["region"], "0,0,16,16");
     let stdout = String::from_utf8_lossy(&out.stdout);
-    for label in ["RMSE", "relative MSE", "mean abs. relative error", "bias over"] {
+    for label in ["RMSE", "relative MSE", "mean abs. relative error", "bias over", "largest difference"] {
         assert!(stdout.contains(label), "`{label}` missing from: {stdout}");
     }
     let err = photon_core::image_io::Image::read(&dir.join("err.png")).unwrap();
     assert_eq!((err.width, err.height), (16, 16));
 
     let same = key_values(&compare(&dir, &["a.exr", "a.exr", "--region", "2,3,10,12"]));
-    for key in ["rmse", "rel_mse", "mare", "bias", "rel_bias"] {
+    for key in ["rmse", "rel_mse", "mare", "bias", "rel_bias", "max_abs", "differing"] {
         assert_eq!(number(&same, key), 0.0, "{key} of an image against itself");
     }
     assert_eq!(same["region"], "2,3,10,12");
