@@ -554,6 +554,7 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Resu
     let mut first_ready: Option<Instant> = None;
     let bar = progress_bar(options.progress, sched.strip_count(), resumed);
     let mut tick = tokio::time::interval(Duration::from_millis(250));
+    let mut mixed_math_warned = false;
     let result = loop {
         if sched.is_done() {
             break Ok(());
@@ -570,9 +571,21 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Resu
                 Event::Ready { worker, client, hello, shipped, ship_s } => {
                     unresolved -= 1;
                     first_ready.get_or_insert_with(Instant::now);
+                    let other_mode = members.iter().find_map(|o| {
+                        o.hello.as_ref().filter(|h| h.math_mode != hello.math_mode).map(|h| (&o.addr.name, &h.math_mode))
+                    });
+                    if let (Some((other, mode)), false) = (other_mode, mixed_math_warned) {
+                        eprintln!(
+                            "warning: workers compute with different math modes ({} on {}, {} on {other}): their \
+                             strips may differ in the last bits, and the image depends on which worker rendered what",
+                            hello.math_mode, members[worker.0 as usize].addr.name, mode
+                        );
+                        mixed_math_warned = true;
+                    }
                     let m = &mut members[worker.0 as usize];
                     tracing::info!(
-                        worker = %m.addr.name, arch = %hello.arch, threads = hello.threads, shipped, ship_s, "ready"
+                        worker = %m.addr.name, arch = %hello.arch, math = %hello.math_mode, threads = hello.threads,
+                        shipped, ship_s, "ready"
                     );
                     sched.add_worker(worker, hello.threads);
                     (m.client, m.hello, m.shipped, m.ship_s) = (Some(*client), Some(hello), shipped, ship_s);

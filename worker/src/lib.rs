@@ -53,6 +53,9 @@ pub struct Config {
     pub pass_budget_bytes: u64,
     /// The build id this worker claims (the real one unless a test pretends otherwise).
     pub build_id: String,
+    /// The math mode this worker claims (the real one, [`photon_core::fmath::MODE`], unless a test pretends
+    /// otherwise).
+    pub math_mode: String,
     /// Test-only fault injection.
     pub fault: Fault,
 }
@@ -69,6 +72,7 @@ impl Default for Config {
             max_queue: 4,
             pass_budget_bytes: (memory_bytes() / 4).max(1 << 30),
             build_id: photon_proto::BUILD_ID.to_owned(),
+            math_mode: photon_core::fmath::MODE.to_owned(),
             fault: Fault::None,
         }
     }
@@ -222,6 +226,7 @@ impl Render for Worker {
             memory_bytes: memory_bytes(),
             max_blob_bytes: self.config.max_blob_bytes,
             hostname: hostname(),
+            math_mode: self.config.math_mode.clone(),
         }))
     }
 

@@ -42,6 +42,9 @@ struct Cli {
     /// Test only: claim this build id instead of the real one.
     #[arg(long, hide = true)]
     test_build_id: Option<String>,
+    /// Test only: claim this math mode instead of the real one.
+    #[arg(long, hide = true)]
+    test_math_mode: Option<String>,
     /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
     #[arg(long, hide = true, value_name = "N")]
     test_corrupt_strips: Option<u32>,
@@ -86,6 +89,9 @@ fn run(cli: Cli) -> Result<()> {
     };
     if let Some(id) = cli.test_build_id {
         config.build_id = id;
+    }
+    if let Some(mode) = cli.test_math_mode {
+        config.math_mode = mode;
     }
     if let Some(n) = cli.test_corrupt_strips {
         config.fault = Fault::CorruptPixels(n);
