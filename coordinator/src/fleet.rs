@@ -44,7 +44,7 @@ impl Fleet {
                 let l = LocalWorkers::start(*n, *threads, token_file.as_deref()).await?;
                 Self { addrs: l.addrs.clone(), in_process: None, local: Some(l) }
             }
-            FleetSpec::Remote(addrs) => Self { addrs: addrs.clone(), in_process: None, local: None },
+            FleetSpec::Remote(addrs) => Self { addrs: resolve_dns(addrs).await?, in_process: None, local: None },
         })
     }
 
@@ -112,8 +112,9 @@ pub fn read_hosts(path: &Path) -> Result<Hosts, String> {
     }
     let mut workers = Vec::new();
     for (i, w) in hosts.worker.iter().enumerate() {
-        check_address(&w.address).map_err(|e| format!("{}: worker[{i}].address: {e}", path.display()))?;
-        workers.push(WorkerAddr::new(&w.address, w.name.as_deref()));
+        let worker = worker_entry(&w.address, w.name.as_deref())
+            .map_err(|e| format!("{}: worker[{i}].address: {e}", path.display()))?;
+        workers.push(worker);
     }
     let base = path.parent().unwrap_or(Path::new("."));
     Ok(Hosts {
@@ -123,15 +124,71 @@ pub fn read_hosts(path: &Path) -> Result<Hosts, String> {
     })
 }
 
-/// Workers from `a:port,b:port`.
+/// The prefix of a worker entry that stands for every address its name resolves to.
+pub const DNS_PREFIX: &str = "dns:";
+
+/// How long a `dns:` name may resolve to nothing before the render gives up (the workers' pods may still be
+/// starting when the coordinator's does).
+const DNS_PATIENCE: Duration = Duration::from_secs(120);
+
+/// Workers from `a:port,b:port`. An entry `dns:NAME:PORT` is every address `NAME` resolves to (a Kubernetes
+/// headless Service lists one per ready worker pod); it is resolved when the fleet starts.
 pub fn parse_workers(list: &str) -> Result<Vec<WorkerAddr>, String> {
     let mut out = Vec::new();
     for a in list.split(',').map(str::trim).filter(|a| !a.is_empty()) {
-        check_address(a).map_err(|e| format!("--workers: {e}"))?;
-        out.push(WorkerAddr::new(a, None));
+        out.push(worker_entry(a, None).map_err(|e| format!("--workers: {e}"))?);
     }
     if out.is_empty() {
         return Err("--workers needs at least one HOST:PORT".into());
+    }
+    Ok(out)
+}
+
+/// One worker entry of `--workers` or a host list: `HOST:PORT`, a URI, or `dns:NAME:PORT`.
+fn worker_entry(address: &str, name: Option<&str>) -> Result<WorkerAddr, String> {
+    let address = address.trim();
+    match address.strip_prefix(DNS_PREFIX) {
+        Some(host_port) => {
+            check_address(host_port)?;
+            Ok(WorkerAddr { name: name.unwrap_or(address).to_owned(), uri: address.to_owned() })
+        }
+        None => {
+            check_address(address)?;
+            Ok(WorkerAddr::new(address, name))
+        }
+    }
+}
+
+/// Replaces each `dns:NAME:PORT` entry by one worker per distinct address of `NAME`, waiting up to
+/// [`DNS_PATIENCE`] for the name to resolve to something.
+async fn resolve_dns(addrs: &[WorkerAddr]) -> Result<Vec<WorkerAddr>, String> {
+    let mut out = Vec::new();
+    for w in addrs {
+        let Some(host_port) = w.uri.strip_prefix(DNS_PREFIX) else {
+            out.push(w.clone());
+            continue;
+        };
+        let deadline = tokio::time::Instant::now() + DNS_PATIENCE;
+        let found: std::collections::BTreeSet<std::net::SocketAddr> = loop {
+            match tokio::net::lookup_host(host_port).await {
+                Ok(found) => {
+                    let found: std::collections::BTreeSet<_> = found.collect();
+                    if !found.is_empty() {
+                        break found;
+                    }
+                }
+                Err(e) if tokio::time::Instant::now() >= deadline => {
+                    return Err(format!("--workers {}: {host_port} does not resolve: {e}", w.name));
+                }
+                Err(_) => {}
+            }
+            if tokio::time::Instant::now() >= deadline {
+                return Err(format!("--workers {}: {host_port} resolves to no address", w.name));
+            }
+            tokio::time::sleep(Duration::from_secs(1)).await;
+        };
+        tracing::info!(name = %host_port, workers = found.len(), "resolved");
+        out.extend(found.iter().map(|a| WorkerAddr::new(&a.to_string(), None)));
     }
     Ok(out)
 }
@@ -264,6 +321,19 @@ mod tests {
         let w = parse_workers("a:1, b:2").unwrap();
         assert_eq!(w.iter().map(|w| w.uri.as_str()).collect::<Vec<_>>(), ["http://a:1", "http://b:2"]);
         assert!(parse_workers(" , ").is_err());
+        assert!(parse_workers("dns:photon-worker").is_err());
+    }
+
+    /// A `dns:` entry becomes one worker per address of the name (here the loopback name, whose addresses
+    /// depend on the machine: 127.0.0.1 and perhaps ::1).
+    #[tokio::test]
+    async fn a_dns_entry_stands_for_every_address_of_its_name() {
+        let w = parse_workers("dns:localhost:7878,b:2").unwrap();
+        let addrs = resolve_dns(&w).await.unwrap();
+        let uris: Vec<&str> = addrs.iter().map(|a| a.uri.as_str()).collect();
+        assert!(uris.contains(&"http://127.0.0.1:7878"), "{uris:?}");
+        assert_eq!(uris.last(), Some(&"http://b:2"));
+        assert!(uris.len() >= 2 && uris.iter().all(|u| u.ends_with(":7878") || *u == "http://b:2"), "{uris:?}");
     }
 
     #[test]
