@@ -95,7 +95,13 @@ impl WorkerProcess {
 
     /// Starts a worker listening on `listen`.
     pub fn start_on(listen: &str, args: &[&str]) -> Self {
-        let mut child = Command::new(worker())
+        Self::start_command(Command::new(worker()), listen, args)
+    }
+
+    /// Starts a worker with `command` (the worker binary, or an emulator with the binary as its first
+    /// argument), listening on `listen`.
+    pub fn start_command(mut command: Command, listen: &str, args: &[&str]) -> Self {
+        let mut child = command
             .args(["--listen", listen])
             .args(args)
             .env("RUST_LOG", "info")
