@@ -17,7 +17,8 @@ for tool in slurmctld slurmd sbatch munged mungekey; do
   command -v "$tool" >/dev/null || { echo "$tool is missing: run with --install (as root)" >&2; exit 1; }
 done
 bin=${PHOTON_BIN:-$repo/target/release}
-[ -x "$bin/photon-worker" ] && [ -x "$bin/photon-coordinator" ] || { echo "build the release binaries first" >&2; exit 1; }
+[ -x "$bin/photon-worker" ] && [ -x "$bin/photon-coordinator" ] || { echo "no photon binaries in $bin: build them first" >&2; exit 1; }
+bin=$(cd "$bin" && pwd) # the job runs in another folder
 
 D=$(mktemp -d /tmp/photon-slurm.XXXX)
 chmod 755 "$D" # munged wants every folder above its socket searchable by all
