@@ -141,6 +141,7 @@ fn a_mixed_farm_gives_the_slow_worker_fewer_strips_and_the_same_image() {
     assert!(a_strips >= 1, "the aarch64 worker should finish a strip in a 48-strip render: {}", text(&o));
     assert!(x_strips > 2 * a_strips, "the emulated worker should take far fewer strips: {}", text(&o));
     assert!(x_spec >= 1, "the fast worker should copy the slow one's tail strips: {}", text(&o));
+    assert!(!text(&o).contains("different math modes"), "both builds are portable: {}", text(&o));
     let (differing, largest) = difference(&pixels(&alone), &pixels(&mixed));
     assert_eq!(differing, 0, "the mixed farm changed pixels (largest difference {largest:e})");
 }
