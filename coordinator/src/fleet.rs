@@ -2,6 +2,8 @@
 //! one worker server inside this process (the default).
 
 use crate::farm::WorkerAddr;
+use std::collections::BTreeSet;
+use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tokio::io::AsyncBufReadExt;
@@ -125,7 +127,7 @@ pub fn read_hosts(path: &Path) -> Result<Hosts, String> {
 }
 
 /// The prefix of a worker entry that stands for every address its name resolves to.
-pub const DNS_PREFIX: &str = "dns:";
+const DNS_PREFIX: &str = "dns:";
 
 /// How long a `dns:` name may resolve to nothing before the render gives up (the workers' pods may still be
 /// starting when the coordinator's does).
@@ -169,23 +171,14 @@ async fn resolve_dns(addrs: &[WorkerAddr]) -> Result<Vec<WorkerAddr>, String> {
             continue;
         };
         let deadline = tokio::time::Instant::now() + DNS_PATIENCE;
-        let found: std::collections::BTreeSet<std::net::SocketAddr> = loop {
-            match tokio::net::lookup_host(host_port).await {
-                Ok(found) => {
-                    let found: std::collections::BTreeSet<_> = found.collect();
-                    if !found.is_empty() {
-                        break found;
-                    }
-                }
-                Err(e) if tokio::time::Instant::now() >= deadline => {
-                    return Err(format!("--workers {}: {host_port} does not resolve: {e}", w.name));
-                }
-                Err(_) => {}
+        let found = loop {
+            let result = tokio::net::lookup_host(host_port).await.map(|a| a.collect::<BTreeSet<SocketAddr>>());
+            match result {
+                Ok(found) if !found.is_empty() => break found,
+                _ if tokio::time::Instant::now() < deadline => tokio::time::sleep(Duration::from_secs(1)).await,
+                Ok(_) => return Err(format!("--workers {}: {host_port} resolves to no address", w.name)),
+                Err(e) => return Err(format!("--workers {}: {host_port} does not resolve: {e}", w.name)),
             }
-            if tokio::time::Instant::now() >= deadline {
-                return Err(format!("--workers {}: {host_port} resolves to no address", w.name));
-            }
-            tokio::time::sleep(Duration::from_secs(1)).await;
         };
         tracing::info!(name = %host_port, workers = found.len(), "resolved");
         out.extend(found.iter().map(|a| WorkerAddr::new(&a.to_string(), None)));
