@@ -10,6 +10,7 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
+use photon_core::metrics::compare;
 use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -72,16 +73,10 @@ fn text(o: &Output) -> String {
     format!("stdout:\n{}\nstderr:\n{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
-fn pixels(path: &Path) -> Vec<f32> {
-    Image::read(path).unwrap().pixels
-}
-
-/// Pixels that differ in any bit, and the largest absolute difference.
-fn difference(a: &[f32], b: &[f32]) -> (usize, f32) {
-    assert_eq!(a.len(), b.len());
-    let differing = a.iter().zip(b).filter(|(x, y)| x.to_bits() != y.to_bits()).count();
-    let largest = a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
-    (differing, largest)
+/// Values of the two images whose bits differ, and the largest absolute difference (`photon-coordinator compare`).
+fn difference(a: &Path, b: &Path) -> (u64, f64) {
+    let m = compare(&Image::read(a).unwrap(), &Image::read(b).unwrap(), None).unwrap();
+    (m.differing, m.max_abs)
 }
 
 /// The strips and speculative copies column of a worker's row in the coordinator's table.
@@ -113,9 +108,9 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
         render(scene, &a, job, &x86.addr);
         let o = render(scene, &b, job, &arm.addr);
         assert!(String::from_utf8_lossy(&o.stdout).contains("aarch64"), "not rendered on aarch64: {}", text(&o));
-        let (x, y) = (pixels(&a), pixels(&b));
+        let x = Image::read(&a).unwrap().pixels;
         assert!(x.iter().any(|&v| v > 0.0), "{scene}: black image");
-        let (differing, largest) = difference(&x, &y);
+        let (differing, largest) = difference(&a, &b);
         eprintln!("{scene}: {differing} of {} values differ, largest difference {largest:e}", x.len());
         assert_eq!(differing, 0, "{scene}: aarch64 and x86-64 disagree (largest difference {largest:e})");
     }
@@ -142,7 +137,7 @@ fn a_mixed_farm_gives_the_slow_worker_fewer_strips_and_the_same_image() {
     assert!(x_strips > 2 * a_strips, "the emulated worker should take far fewer strips: {}", text(&o));
     assert!(x_spec >= 1, "the fast worker should copy the slow one's tail strips: {}", text(&o));
     assert!(!text(&o).contains("different math modes"), "both builds are portable: {}", text(&o));
-    let (differing, largest) = difference(&pixels(&alone), &pixels(&mixed));
+    let (differing, largest) = difference(&alone, &mixed);
     assert_eq!(differing, 0, "the mixed farm changed pixels (largest difference {largest:e})");
 }
 
