@@ -54,13 +54,13 @@ fn main() {
     // 1. Overhead of the farm against the direct render.
     let (size, spp, runs) = if quick { (96, 8, 3) } else { (256, 32, 5) };
     let (scene, path) = cornell(size, spp, Integrator::Path, 0);
-    let prep = Prepared::new(&scene, &path).expect("prepare");
+    let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
     let job = job_of(&prep);
     let (mut direct, mut inproc, mut two) = (Vec::new(), Vec::new(), Vec::new());
     let local = rt.block_on(LocalWorkers::start(2, cores, None)).expect("start two loopback workers");
     for _ in 0..runs {
         let t = Instant::now();
-        let strip = photon_core::render::render_image(&prep, &prep.settings, &|_| {});
+        let strip = photon_core::render::render_image(&prep, &|_| {});
         direct.push(t.elapsed().as_secs_f64());
         let want: Vec<u32> = strip.pixels.iter().map(|v| v.to_bits()).collect();
 
@@ -98,7 +98,7 @@ fn main() {
     let mut last_blob = Vec::new();
     for &n in counts {
         let (scene, path) = cornell(8, 1, Integrator::PhotonMap, n);
-        let prep = Prepared::new(&scene, &path).expect("prepare");
+        let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
         let stored = prep.photons.as_ref().map_or(0, |p| p.global.len());
         let job = job_of(&prep);
         let bytes = job.blob_bytes();
@@ -149,7 +149,7 @@ fn main() {
     scene.camera.width = 1;
     scene.camera.height = rows;
     scene.render.spp = 1;
-    let prep = Prepared::new(&scene, &path).expect("prepare");
+    let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
     let job = job_of(&prep);
     let mut rates = Vec::new();
     for _ in 0..3 {

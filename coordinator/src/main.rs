@@ -439,7 +439,7 @@ fn prepare_job(
     let frame = Prepared::encode_frame_of(&camera, &settings).context("encoding the frame")?;
     let (width, height) = (camera.width, camera.height);
     let Some(cache) = cache else {
-        let prep = Prepared::new(scene, scene_path)?;
+        let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
         let scene_blob = prep.encode_scene().context("encoding the scene")?;
         let photons = prep.encode_photons().context("encoding the photon maps")?;
         return Ok((farm::Job::new(scene_blob, photons, frame, (width, height), &settings), None));
@@ -453,7 +453,7 @@ fn prepare_job(
     let (scene_blob, prep) = match cached_scene {
         Some(bytes) => (bytes, None),
         None => {
-            let prep = Prepared::without_photons(scene, scene_path)?;
+            let prep = Prepared::new(scene, scene_path)?;
             let bytes = prep.encode_scene().context("encoding the scene")?;
             cache.store(&keys.scene, "scene", &bytes);
             (bytes, Some(prep))
@@ -468,7 +468,7 @@ fn prepare_job(
                 None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
                     .with_context(|| format!("decoding the cached scene in {}", cache.dir().display()))?,
             };
-            let prep = Prepared { photons: prep.photon_maps_if_needed(scene_path)?, ..prep };
+            let prep = prep.with_photon_maps(scene_path)?;
             let bytes = prep.encode_photons().context("encoding the photon maps")?;
             if let Some(b) = &bytes {
                 cache.store(&keys.photons, "photons", b);

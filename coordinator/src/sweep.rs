@@ -122,7 +122,7 @@ pub async fn render_timed(
     options: crate::farm::Options,
 ) -> Result<Timed> {
     let t0 = Instant::now();
-    let prep = Prepared::new(scene, scene_path)?;
+    let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
     let (width, height) = (prep.camera.width, prep.camera.height);
     let (scene_blob, photons, frame) = (prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?);
     let job = crate::farm::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);

@@ -6,11 +6,12 @@
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
-use photon_core::bvh::Bvh;
-use photon_core::fmath;
-use photon_core::geometry::{Aabb, Geometry, NONE, Primitive, Ray};
-use photon_core::rng::{Domain, Sampler};
-use photon_core::shapes::{Shape, Triangle};
+use photon_core::geometry::bvh::Bvh;
+use photon_core::geometry::shapes::{Shape, Triangle};
+use photon_core::geometry::{Geometry, NONE, Primitive};
+use photon_core::math::fmath;
+use photon_core::math::rng::{Domain, Sampler};
+use photon_core::math::{Aabb, Ray};
 use std::hint::black_box;
 use std::time::Duration;
 

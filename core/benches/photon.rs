@@ -2,8 +2,8 @@
 //! core (a one-thread rayon pool), for the global and the caustic map.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use photon_core::photon::{PhotonKind, trace_photons};
 use photon_core::prepare::Prepared;
+use photon_core::prepare::photons::{PhotonKind, trace_photons};
 use std::path::Path;
 use std::time::Duration;
 

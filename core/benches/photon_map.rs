@@ -5,15 +5,15 @@
 //! `cargo bench -p photon-core --bench photon_map`; it also prints the map's bytes per photon.
 #![allow(clippy::unwrap_used, reason = "a benchmark whose setup fails should stop at once, like a test")]
 
-use photon_core::fmath;
+use photon_core::math::fmath;
 use std::hint::black_box;
 use std::time::Duration;
 
 use criterion::{BatchSize, BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3A;
 use photon_core::Rgb;
-use photon_core::photon_map::{Estimator, Gather, Kernel, Photon, PhotonMap};
-use photon_core::rng::{Domain, Sampler};
+use photon_core::math::rng::{Domain, Sampler};
+use photon_core::photon::{Estimator, Gather, Kernel, Photon, PhotonMap};
 
 const SIZES: [usize; 2] = [1_000_000, 10_000_000];
 const QUERIES: usize = 1000;

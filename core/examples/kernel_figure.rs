@@ -35,7 +35,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use photon_core::image_io::Image;
-use photon_core::photon_map::Kernel;
+use photon_core::photon::Kernel;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
 use photon_core::scene::{GatherMode, Integrator, Scene};
@@ -244,11 +244,11 @@ fn reference(o: &Options, scene: &Scene) -> Result<Reference, Error> {
     settings.seed = settings.seed.wrapping_add(REFERENCE_SEED_OFFSET);
     let mut s = scene.clone();
     s.render = settings.clone();
-    let prep = Prepared::new(&s, &o.scene)?;
+    let mut prep = Prepared::new(&s, &o.scene)?;
     let t = Instant::now();
-    let a = render_image(&prep, &settings, &|_| {}).pixels;
-    settings.seed = settings.seed.wrapping_add(1);
-    let b = render_image(&prep, &settings, &|_| {}).pixels;
+    let a = render_image(&prep, &|_| {}).pixels;
+    prep.settings.seed = prep.settings.seed.wrapping_add(1);
+    let b = render_image(&prep, &|_| {}).pixels;
     let secs = t.elapsed().as_secs_f64();
     let pixels: Vec<f32> = a.iter().zip(&b).map(|(x, y)| 0.5 * (x + y)).collect();
     // E[(a − b)²] = 2σ² for halves of variance σ²; their mean has variance σ²/2 = E[(a − b)²]/4.
@@ -309,9 +309,9 @@ fn main() -> Result<(), Error> {
                 configure(p, &o, gather, kernel);
             }
             let t = Instant::now();
-            let a = render_image(&prep, &prep.settings, &|_| {}).pixels;
+            let a = render_image(&prep, &|_| {}).pixels;
             let render_s = t.elapsed().as_secs_f64();
-            let b = render_image(&twin, &twin.settings, &|_| {}).pixels;
+            let b = render_image(&twin, &|_| {}).pixels;
             // A reference of unknown noise (an EXR without its `reference.txt`) leaves that noise in bias².
             let scores = Scores::new(&a, &b, &reference.pixels, ref_noise.unwrap_or((0.0, 0.0)));
             let file = format!("{}-{}.png", kernel_name(kernel), gather_name(gather));

@@ -11,8 +11,8 @@
 //! aperture = 0.0         # lens radius; 0 is a pinhole
 //! ```
 
-use crate::fmath;
-use crate::geometry::Ray;
+use crate::math::Ray;
+use crate::math::fmath;
 use crate::scene::CameraSpec;
 use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};

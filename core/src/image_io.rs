@@ -1,7 +1,7 @@
 //! Images: linear f32 RGB in memory; OpenEXR (linear, for analysis) or, tone-mapped, PNG, PPM (P6) and BMP
 //! on disk. The format comes from the file extension.
 
-use crate::fmath;
+use crate::math::fmath;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 

@@ -16,26 +16,21 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod bsdf;
-pub mod bvh;
+// Layered in the order of the data flow; docs/ARCHITECTURE.md lists the layers (core/tests/module_layers.rs).
 pub mod camera;
 pub mod codec;
-pub mod fmath;
+pub mod error;
 pub mod geometry;
 pub mod image_io;
 pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;
-pub mod mesh;
 pub mod metrics;
 pub mod photon;
-pub mod photon_map;
 pub mod prepare;
 pub mod render;
-pub mod rng;
 pub mod scene;
-pub mod shapes;
 
 /// Linear RGB radiance, power or reflectance.
 pub type Rgb = glam::Vec3A;

@@ -20,7 +20,8 @@
 //! to their power.
 
 use crate::Rgb;
-use crate::geometry::{Geometry, Hit, Ray};
+use crate::geometry::{Geometry, Hit};
+use crate::math::Ray;
 use crate::math::luminance;
 use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};

@@ -22,8 +22,8 @@
 //!
 //! Sums run in `f64` in pixel order, so the result is the same on every machine and thread count.
 
-use crate::fmath;
 use crate::image_io::Image;
+use crate::math::fmath;
 use std::fmt;
 
 /// The `ε` of the relative metrics, in the image's units (see the module documentation for the choice).

@@ -32,8 +32,8 @@ fn no_nan_inf_or_negative_pixel() {
             r.photons.pass_photons = r.photons.pass_photons.min(5_000);
             r.photons.passes = 2;
             r.photons.final_gather_rays = 4;
-            let prep = Prepared::new(&scene, path).unwrap();
-            let img = render_image(&prep, &prep.settings, &|_| {});
+            let prep = Prepared::new(&scene, path).unwrap().with_photon_maps(path).unwrap();
+            let img = render_image(&prep, &|_| {});
             let bad = img.pixels.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
             assert_eq!(bad, 0, "{}: {integrator}: {bad} bad values", path.display());
             // Direct light alone cannot see a light that shines only through glass.

@@ -19,7 +19,7 @@ fn cornell(integrator: Integrator) -> Prepared {
     scene.render.photons.global = 5_000;
     scene.render.photons.pass_photons = 2_000;
     scene.render.photons.passes = 3;
-    Prepared::new(&scene, &path).unwrap()
+    Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap()
 }
 
 fn bits(v: &[f32]) -> Vec<u32> {
@@ -36,12 +36,12 @@ fn blobs_render_the_same_bytes() {
         assert_eq!(photons.is_some(), integrator == Integrator::FinalGather);
         let back = Prepared::from_blobs(&scene, photons.as_deref(), &frame, usize::MAX).unwrap();
         let h = prep.camera.height;
-        let a = render_strip(&prep, 0..h, &prep.settings, &|_| {});
+        let a = render_strip(&prep, 0..h, &|_| {});
         // Progressive passes shared between two strips give the same bytes as tracing them per strip.
         let shared = PassMaps::new(&back.settings, 1 << 30);
         let mut b = Vec::new();
         for rows in [0..7, 7..h] {
-            b.extend(render_strip_with(&back, rows, &back.settings, &shared, &|_| true).unwrap().pixels);
+            b.extend(render_strip_with(&back, rows, &shared, &|_| true).unwrap().pixels);
         }
         assert_eq!(bits(&a.pixels), bits(&b), "{integrator}");
         let kept = if integrator == Integrator::Progressive { 3 } else { 0 };
@@ -51,7 +51,7 @@ fn blobs_render_the_same_bytes() {
             let one = PassMaps::new(&back.settings, shared.kept_bytes() / 3 + 1024);
             let mut c = Vec::new();
             for rows in [0..5, 5..h] {
-                c.extend(render_strip_with(&back, rows, &back.settings, &one, &|_| true).unwrap().pixels);
+                c.extend(render_strip_with(&back, rows, &one, &|_| true).unwrap().pixels);
             }
             assert_eq!(one.kept_passes(), 1);
             assert_eq!(bits(&a.pixels), bits(&c));
@@ -70,7 +70,7 @@ fn a_cancelled_render_stops_early() {
             false
         };
         let passes = PassMaps::new(&prep.settings, 0);
-        let out = render_strip_with(&prep, 0..prep.camera.height, &prep.settings, &passes, &cancel);
+        let out = render_strip_with(&prep, 0..prep.camera.height, &passes, &cancel);
         assert!(out.is_none(), "{integrator}");
         // Rows already started finish; no new row starts once the first one has asked to stop (one per thread).
         let started = calls.load(Ordering::Relaxed);

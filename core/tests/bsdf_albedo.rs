@@ -12,7 +12,7 @@
 mod common;
 
 use common::{Mean, dir, every_kind, flat, integrate_whole_sphere, sampler};
-use photon_core::bsdf::{Bsdf, TransportMode};
+use photon_core::material::bsdf::{Bsdf, TransportMode};
 
 const SAMPLES: usize = 200_000;
 const Z: f64 = 5.0;

@@ -9,7 +9,7 @@ mod common;
 
 use common::{dir, every_kind, flat, integrate_whole_sphere, sampler};
 use photon_core::Rgb;
-use photon_core::bsdf::{Bxdf, TransportMode};
+use photon_core::material::bsdf::{Bxdf, TransportMode};
 
 const SAMPLES: usize = 200_000;
 

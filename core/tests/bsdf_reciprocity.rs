@@ -10,8 +10,8 @@ mod common;
 
 use common::{every_kind, sampler};
 use glam::Vec3A;
-use photon_core::bsdf::{Bsdf, TransportMode};
-use photon_core::fmath;
+use photon_core::material::bsdf::{Bsdf, TransportMode};
+use photon_core::math::fmath;
 use photon_core::math::uniform_sphere;
 
 #[test]

@@ -14,7 +14,7 @@ mod common;
 use common::{chi2_p_value, chi2_test, dir, flat, integrate_sphere, sampler};
 use glam::Vec3A;
 use photon_core::Rgb;
-use photon_core::bsdf::{Bsdf, Bxdf, TransportMode};
+use photon_core::material::bsdf::{Bsdf, Bxdf, TransportMode};
 use std::f64::consts::{PI, TAU};
 
 const SAMPLES: usize = 200_000;

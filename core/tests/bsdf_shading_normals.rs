@@ -12,8 +12,8 @@ mod common;
 
 use common::{every_kind, sampler, transmits};
 use glam::Vec3A;
-use photon_core::bsdf::{Bsdf, Bxdf, TransportMode};
-use photon_core::fmath;
+use photon_core::material::bsdf::{Bsdf, Bxdf, TransportMode};
+use photon_core::math::fmath;
 use photon_core::math::uniform_sphere;
 
 #[test]

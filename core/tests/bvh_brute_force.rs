@@ -3,11 +3,12 @@
 //! collinear, repeated vertices) and exact duplicates. And the build is deterministic.
 
 use glam::{Vec3, Vec3A};
-use photon_core::bvh::Bvh;
-use photon_core::fmath;
-use photon_core::geometry::{Aabb, Geometry, NONE, Primitive, Ray};
-use photon_core::rng::{Domain, Sampler};
-use photon_core::shapes::{Shape, Triangle};
+use photon_core::geometry::bvh::Bvh;
+use photon_core::geometry::shapes::{Shape, Triangle};
+use photon_core::geometry::{Geometry, NONE, Primitive};
+use photon_core::math::fmath;
+use photon_core::math::rng::{Domain, Sampler};
+use photon_core::math::{Aabb, Ray};
 
 fn v3(s: &mut Sampler) -> Vec3 {
     Vec3::new(s.next_f32(), s.next_f32(), s.next_f32())

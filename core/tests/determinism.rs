@@ -14,7 +14,7 @@ fn cornell() -> Prepared {
     scene.camera.width = 40;
     scene.camera.height = 30;
     scene.render.spp = 4;
-    Prepared::new(&scene, &path).unwrap()
+    Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap()
 }
 
 fn bits(v: &[f32]) -> Vec<u32> {
@@ -26,12 +26,12 @@ fn threads_and_strips_do_not_change_a_pixel() {
     let prep = cornell();
     let h = prep.camera.height;
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-    let whole = one.install(|| render_strip(&prep, 0..h, &prep.settings, &|_| {}));
+    let whole = one.install(|| render_strip(&prep, 0..h, &|_| {}));
     let four = rayon::ThreadPoolBuilder::new().num_threads(4).build().unwrap();
     let bounds = [0, 3, 4, 11, 17, 18, 26, h];
     let mut stitched = Vec::new();
     for w in bounds.windows(2) {
-        let strip = four.install(|| render_strip(&prep, w[0]..w[1], &prep.settings, &|_| {}));
+        let strip = four.install(|| render_strip(&prep, w[0]..w[1], &|_| {}));
         assert_eq!(strip.rows, w[0]..w[1]);
         stitched.extend(strip.pixels);
     }
@@ -51,13 +51,13 @@ fn photon_methods_do_not_depend_on_strips_either() {
         scene.render.photons.global = 5_000;
         scene.render.photons.pass_photons = 5_000;
         scene.render.photons.passes = 3;
-        let prep = Prepared::new(&scene, &path).unwrap();
+        let prep = Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let whole = one.install(|| render_strip(&prep, 0..12, &prep.settings, &|_| {}));
+        let whole = one.install(|| render_strip(&prep, 0..12, &|_| {}));
         let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
         let mut stitched = Vec::new();
         for rows in [0..5, 5..6, 6..12] {
-            stitched.extend(three.install(|| render_strip(&prep, rows, &prep.settings, &|_| {})).pixels);
+            stitched.extend(three.install(|| render_strip(&prep, rows, &|_| {})).pixels);
         }
         assert_eq!(bits(&whole.pixels), bits(&stitched), "{integrator}");
     }

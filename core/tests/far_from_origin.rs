@@ -5,11 +5,11 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::{Vec3, Vec3A};
-use photon_core::fmath;
-use photon_core::geometry::Ray;
+use photon_core::math::Ray;
+use photon_core::math::fmath;
+use photon_core::math::rng::Sampler;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::rng::Sampler;
 use photon_core::scene::{LightSpec, Object, Scene};
 use std::path::Path;
 
@@ -64,7 +64,7 @@ intensity = [4.0, 4.0, 4.0]
 "#;
     let path = Path::new("far.toml");
     let scene = moved(Scene::parse(text, path).unwrap(), FAR);
-    let prep = Prepared::new(&scene, path).unwrap();
+    let prep = Prepared::new(&scene, path).unwrap().with_photon_maps(path).unwrap();
     let far = Vec3A::from(FAR);
     let eye = Vec3A::new(0.0, 3.0, 3.0) + far;
     for (i, target) in [[0.0, 0.0, 0.0], [1.0, 0.0, -1.0], [-2.0, 0.0, 0.5]].iter().enumerate() {
@@ -72,7 +72,6 @@ intensity = [4.0, 4.0, 4.0]
         let mut rays = 0;
         let l = photon_core::integrator::li(
             &prep,
-            &prep.settings,
             Ray::new(eye, fmath::normalize(p - eye)),
             &mut Sampler::for_pixel(1, i as u32, 0, 0),
             &mut rays,
@@ -93,8 +92,8 @@ fn cornell_box_far_away_is_as_bright_as_at_home() {
     home.render.spp = 16;
     let far = moved(home.clone(), FAR);
     let mean = |s: &Scene| {
-        let prep = Prepared::new(s, &path).unwrap();
-        let img = render_image(&prep, &prep.settings, &|_| {});
+        let prep = Prepared::new(s, &path).unwrap().with_photon_maps(&path).unwrap();
+        let img = render_image(&prep, &|_| {});
         img.pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / img.pixels.len() as f64
     };
     let (a, b) = (mean(&home), mean(&far));

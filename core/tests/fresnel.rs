@@ -12,8 +12,8 @@ mod common;
 use common::{dir, flat, sampler};
 use glam::Vec3A;
 use photon_core::Rgb;
-use photon_core::bsdf::{Bsdf, BsdfSample, Bxdf, TransportMode};
-use photon_core::fmath;
+use photon_core::material::bsdf::{Bsdf, BsdfSample, Bxdf, TransportMode};
+use photon_core::math::fmath;
 
 const U_LAST: f32 = 1.0 - f32::EPSILON / 2.0;
 

@@ -4,9 +4,9 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::codec;
-use photon_core::photon::{PhotonKind, trace_photons};
-use photon_core::photon_map::PhotonMap;
+use photon_core::photon::PhotonMap;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::photons::{PhotonKind, trace_photons};
 use std::path::Path;
 
 #[test]

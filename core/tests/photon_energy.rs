@@ -3,8 +3,8 @@
 
 #![allow(clippy::unwrap_used)]
 
-use photon_core::photon::{PhotonKind, paths_per_light, trace_photons};
 use photon_core::prepare::Prepared;
+use photon_core::prepare::photons::{PhotonKind, paths_per_light, trace_photons};
 use std::path::Path;
 
 fn scene(name: &str) -> Prepared {

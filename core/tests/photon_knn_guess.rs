@@ -4,8 +4,8 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::Vec3A;
-use photon_core::photon_map::{Photon, PhotonMap};
-use photon_core::rng::{Domain, Sampler};
+use photon_core::math::rng::{Domain, Sampler};
+use photon_core::photon::{Photon, PhotonMap};
 
 fn brute(photons: &[Photon], p: Vec3A, k: usize, max_r2: f32) -> Vec<(u32, f32)> {
     let mut all: Vec<(u32, f32)> = photons

@@ -5,9 +5,9 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::Vec3A;
-use photon_core::photon::{PhotonKind, trace_photons};
-use photon_core::photon_map::{Estimator, Gather, Kernel, PhotonMap};
+use photon_core::photon::{Estimator, Gather, Kernel, PhotonMap};
 use photon_core::prepare::Prepared;
+use photon_core::prepare::photons::{PhotonKind, trace_photons};
 use photon_core::scene::Scene;
 use std::path::Path;
 

@@ -17,8 +17,8 @@
 use glam::Vec3A;
 use photon_core::Rgb;
 use photon_core::math::cosine_hemisphere;
-use photon_core::photon_map::{Estimator, Gather, Kernel, Photon, PhotonMap};
-use photon_core::rng::{Domain, Sampler};
+use photon_core::math::rng::{Domain, Sampler};
+use photon_core::photon::{Estimator, Gather, Kernel, Photon, PhotonMap};
 
 const SEED: u64 = 0x5EED_F00D;
 /// Reflectance of the Lambertian surface.

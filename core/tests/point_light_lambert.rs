@@ -4,10 +4,10 @@
 #![allow(clippy::unwrap_used)]
 
 use glam::Vec3A;
-use photon_core::fmath;
-use photon_core::geometry::Ray;
+use photon_core::math::Ray;
+use photon_core::math::fmath;
+use photon_core::math::rng::Sampler;
 use photon_core::prepare::Prepared;
-use photon_core::rng::Sampler;
 use photon_core::scene::{Integrator, Scene};
 use std::path::Path;
 
@@ -38,19 +38,22 @@ intensity = [10.0, 5.0, 2.5]
 #[test]
 fn radiance_matches_the_analytic_value() {
     let scene = Scene::parse(SCENE, Path::new("point-light.toml")).unwrap();
-    let prep = Prepared::new(&scene, Path::new("point-light.toml")).unwrap();
+    let prep = Prepared::new(&scene, Path::new("point-light.toml"))
+        .unwrap()
+        .with_photon_maps(Path::new("point-light.toml"))
+        .unwrap();
     let light = Vec3A::new(0.3, 2.0, -0.4);
     let intensity = Vec3A::new(10.0, 5.0, 2.5);
     let eye = Vec3A::new(0.0, 3.0, 3.0);
     for integrator in [Integrator::Direct, Integrator::Path] {
-        let mut settings = prep.settings.clone();
-        settings.integrator = integrator;
+        let mut prep = prep.clone();
+        prep.settings.integrator = integrator;
         for (i, target) in [[0.0, 0.0, 0.0], [1.5, 0.0, -2.0], [-2.0, 0.0, 1.0], [0.3, 0.0, -0.4]].iter().enumerate() {
             let p = Vec3A::from_array(*target);
             let ray = Ray::new(eye, fmath::normalize(p - eye));
             let mut s = Sampler::for_pixel(1, i as u32, 0, 0);
             let mut rays = 0;
-            let l = photon_core::integrator::li(&prep, &settings, ray, &mut s, &mut rays);
+            let l = photon_core::integrator::li(&prep, ray, &mut s, &mut rays);
             let d = light - p;
             let r2 = d.length_squared();
             let cos = fmath::normalize(d).y;

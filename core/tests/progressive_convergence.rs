@@ -18,8 +18,8 @@ fn cornell(integrator: Integrator, spp: u32, passes: u32) -> Vec<f32> {
     scene.render.photons.passes = passes;
     scene.render.photons.pass_photons = 20_000;
     scene.render.photons.radius = Some(0.15);
-    let prep = Prepared::new(&scene, &path).unwrap();
-    render_image(&prep, &prep.settings, &|_| {}).pixels
+    let prep = Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
+    render_image(&prep, &|_| {}).pixels
 }
 
 /// Relative MSE: mean of (x − ref)² / (ref² + 0.01).

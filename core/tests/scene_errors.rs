@@ -372,7 +372,7 @@ fn damaged_scenes_never_panic() {
     for v in &variants {
         match Scene::parse(v, &path) {
             Ok(scene) => {
-                Prepared::new(&scene, &path).unwrap();
+                Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
             }
             Err(e) => {
                 assert!(e.to_string().contains("cornell.toml"), "{e}");

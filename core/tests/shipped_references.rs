@@ -25,8 +25,8 @@ fn render(name: &str, integrator: Integrator, b: u32) -> Image {
     scene.render.spp = b;
     scene.render.photons.passes = b;
     scene.render.photons.pass_photons = 25_000;
-    let prep = Prepared::new(&scene, &path).unwrap();
-    Image { width: 32, height: 32, pixels: render_image(&prep, &prep.settings, &|_| {}).pixels }
+    let prep = Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
+    Image { width: 32, height: 32, pixels: render_image(&prep, &|_| {}).pixels }
 }
 
 fn check(name: &str, integrator: Integrator, budgets: [u32; 2]) {

@@ -37,8 +37,9 @@ emission = {{ radiance = [1.0, 1.0, 1.0], two_sided = true }}
 "#
     );
     let scene = Scene::parse(&text, Path::new("furnace.toml")).unwrap();
-    let prep = Prepared::new(&scene, Path::new("furnace.toml")).unwrap();
-    let strip = render_image(&prep, &prep.settings, &|_| {});
+    let prep =
+        Prepared::new(&scene, Path::new("furnace.toml")).unwrap().with_photon_maps(Path::new("furnace.toml")).unwrap();
+    let strip = render_image(&prep, &|_| {});
     assert!(strip.pixels.iter().all(|v| v.is_finite() && *v >= 0.0));
     strip.pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / strip.pixels.len() as f64
 }

@@ -4,7 +4,7 @@
 //! Without it or without `qemu-aarch64` these tests say so and pass, unless `PHOTON_REQUIRE_AARCH64` is set, as
 //! `.ci/run` sets it: then a missing binary fails them.
 //!
-//! Strips rendered on the two architectures must agree to the bit (`photon_core::fmath`), so the image of a
+//! Strips rendered on the two architectures must agree to the bit (`photon_core::math::fmath`), so the image of a
 //! mixed farm is the image of an x86 farm, whoever rendered which strip.
 
 #![allow(clippy::unwrap_used)]

@@ -53,7 +53,7 @@ pub struct Config {
     pub pass_budget_bytes: u64,
     /// The build id this worker claims (the real one unless a test pretends otherwise).
     pub build_id: String,
-    /// The math mode this worker claims (the real one, [`photon_core::fmath::MODE`], unless a test pretends
+    /// The math mode this worker claims (the real one, [`photon_core::math::fmath::MODE`], unless a test pretends
     /// otherwise).
     pub math_mode: String,
     /// Test-only fault injection.
@@ -72,7 +72,7 @@ impl Default for Config {
             max_queue: 4,
             pass_budget_bytes: (memory_bytes() / 4).max(1 << 30),
             build_id: photon_proto::BUILD_ID.to_owned(),
-            math_mode: photon_core::fmath::MODE.to_owned(),
+            math_mode: photon_core::math::fmath::MODE.to_owned(),
             fault: Fault::None,
         }
     }
@@ -448,9 +448,7 @@ impl StripContext {
             !tx.is_closed()
         };
         let prep = &job.prep;
-        let strip = self
-            .pool
-            .install(|| render_strip_with(prep, r.row_start..r.row_end, &prep.settings, &job.passes, &progress));
+        let strip = self.pool.install(|| render_strip_with(prep, r.row_start..r.row_end, &job.passes, &progress));
         let Some(strip) = strip else {
             return Err(Status::cancelled("the coordinator cancelled the strip"));
         };

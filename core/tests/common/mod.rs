@@ -4,9 +4,9 @@
 
 use glam::Vec3A;
 use photon_core::Rgb;
-use photon_core::bsdf::{Bsdf, Bxdf};
-use photon_core::fmath;
-use photon_core::rng::{Domain, Sampler};
+use photon_core::material::bsdf::{Bsdf, Bxdf};
+use photon_core::math::fmath;
+use photon_core::math::rng::{Domain, Sampler};
 
 /// The random stream of one test case.
 pub fn sampler(test: u64, case: u64) -> Sampler {

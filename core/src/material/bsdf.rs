@@ -22,7 +22,7 @@
 //! - Lambert and Phong are reciprocal, `f(wo, wi) = f(wi, wo)`; the transport mode does not change them.
 
 use crate::Rgb;
-use crate::fmath;
+use crate::math::fmath;
 use crate::math::{Frame, cosine_hemisphere, fresnel_dielectric, luminance, refract};
 use glam::{Vec2, Vec3A};
 use std::f32::consts::{FRAC_1_PI, PI};

@@ -11,8 +11,8 @@
 //! tested separately (see [`crate::geometry`]). Each shape answers the distance of the closest hit (`intersect`)
 //! and, for that hit only, the surface data (`surface`).
 
-use crate::fmath;
-use crate::geometry::{Aabb, Ray};
+use crate::math::fmath;
+use crate::math::{Aabb, Ray};
 use glam::{Vec2, Vec3, Vec3A, Vec3Swizzles};
 use serde::{Deserialize, Serialize};
 
@@ -475,7 +475,7 @@ mod tests {
     /// ray can graze it.
     #[test]
     fn triangle_fan_has_no_cracks() {
-        use crate::rng::{Domain, Sampler};
+        use crate::math::rng::{Domain, Sampler};
         let c = Vec3::new(0.3, -0.2, 0.1);
         let ring: Vec<Vec3> = (0..6)
             .map(|i| {
@@ -507,7 +507,7 @@ mod tests {
 
     #[test]
     fn zero_area_and_non_finite_triangles_are_never_hit() {
-        use crate::rng::{Domain, Sampler};
+        use crate::math::rng::{Domain, Sampler};
         let (a, b) = (Vec3::new(0.1, 0.7, -0.3), Vec3::new(2.3, -1.1, 0.9));
         let mut tris = vec![
             Triangle::new(a, a, a),
@@ -544,7 +544,7 @@ mod tests {
     /// translating the vertices to its origin rounds: the conservative distance bound rejects such hits.
     #[test]
     fn triangle_is_not_hit_from_its_own_plane() {
-        use crate::rng::{Domain, Sampler};
+        use crate::math::rng::{Domain, Sampler};
         // The plane z = x + y.
         let t = Triangle::new(Vec3::new(-1.0, -1.0, -2.0), Vec3::new(3.0, 0.0, 3.0), Vec3::new(0.0, 3.0, 3.0));
         let mut s = Sampler::new(3, Domain::Photon, 0, 0, 0);

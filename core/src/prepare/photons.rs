@@ -1,4 +1,4 @@
-//! Photon emission and tracing.
+//! Photon emission and tracing (Jensen's first pass), and the photon maps of a job built from it.
 //!
 //! Photons leave the lights in proportion to their power: light `l` emits `round(N · Φ_l / Φ)` of the `N`
 //! paths (at least one if it has power), each carrying `Φ_l / N_l`, so the emitted power adds up to the
@@ -10,15 +10,15 @@
 //! Photon `i` of pass `p` draws from the stream `(seed, p, i)`; paths are traced in parallel in fixed chunks and
 //! concatenated in order, so the maps are bit-identical whatever the thread count.
 
+use super::Prepared;
 use crate::Rgb;
-use crate::bsdf::TransportMode;
-use crate::geometry::Ray;
-use crate::integrator::spawn;
 use crate::light::Light;
-use crate::math::{Frame, cosine_hemisphere, uniform_sphere};
-use crate::photon_map::Photon;
-use crate::prepare::Prepared;
-use crate::rng::Sampler;
+use crate::material::Material;
+use crate::material::bsdf::TransportMode;
+use crate::math::rng::Sampler;
+use crate::math::{Frame, Ray, cosine_hemisphere, uniform_sphere};
+use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
+use crate::scene::{Integrator, SceneError};
 use rayon::prelude::*;
 
 /// Paths traced per parallel chunk (fixed, so results do not depend on the thread pool).
@@ -173,6 +173,52 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
             // Past a diffuse bounce no photon of this path can be a caustic one.
             return;
         }
-        ray = spawn(&hit, bs.wi);
+        ray = hit.spawn_ray(bs.wi);
+    }
+}
+
+impl Prepared {
+    /// The prepared scene with the photon maps its method needs (`photons` is `None` for methods without maps,
+    /// and for progressive photon mapping, which traces its own photons pass by pass). `scene_path` names the
+    /// scene in errors.
+    ///
+    /// # Errors
+    /// [`SceneError::Photons`] when a map cannot be built (a stored photon that is not finite).
+    pub fn with_photon_maps(mut self, scene_path: &std::path::Path) -> Result<Self, SceneError> {
+        self.photons =
+            self.photon_maps_if_needed().map_err(|source| SceneError::Photons { path: scene_path.into(), source })?;
+        Ok(self)
+    }
+
+    /// The photon maps the method needs, or `None` when it needs none.
+    pub fn photon_maps_if_needed(&self) -> Result<Option<PhotonMaps>, PhotonMapError> {
+        if self.settings.integrator.needs_photon_maps() { self.build_photon_maps().map(Some) } else { Ok(None) }
+    }
+
+    /// Traces and builds the photon maps of the method: the global map, and the caustic map for
+    /// `final-gather` when some material has a delta (mirror or glass) component.
+    pub fn build_photon_maps(&self) -> Result<PhotonMaps, PhotonMapError> {
+        let ph = &self.settings.photons;
+        let global = trace_photons(self, u64::from(ph.global), 0, PhotonKind::Global);
+        tracing::info!(paths = global.paths, photons = global.photons.len(), "global photon map traced");
+        let global = PhotonMap::build(global.photons)?;
+        let caustic = if self.settings.integrator == Integrator::FinalGather
+            && self.materials.iter().any(Material::has_specular)
+        {
+            // Pass index 1 keeps the caustic streams apart from the global ones.
+            let c = trace_photons(self, u64::from(ph.caustic), 1, PhotonKind::Caustic);
+            tracing::info!(paths = c.paths, photons = c.photons.len(), "caustic photon map traced");
+            Some(PhotonMap::build(c.photons)?)
+        } else {
+            None
+        };
+        let estimator = self.estimator();
+        let irradiance = if self.settings.integrator == Integrator::FinalGather {
+            let entries = precompute_irradiance(&global, &estimator, 4);
+            Some(PhotonMap::build(entries)?)
+        } else {
+            None
+        };
+        Ok(PhotonMaps { global, caustic, estimator, irradiance })
     }
 }

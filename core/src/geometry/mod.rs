@@ -1,88 +1,18 @@
-//! Rays, bounding boxes and the scene geometry: every bounded primitive under one BVH, infinite planes beside
-//! it, with closest-hit and any-hit queries.
+//! The scene geometry: every bounded primitive under one BVH, infinite planes beside it, with closest-hit and
+//! any-hit queries, and the hit record shading reads.
+//!
+//! A new shape goes in [`shapes`] (its intersection, bounds, area sampling) as a variant of [`Shape`], and in
+//! the scene's `Object` list (`scene::types`) with its validation (`scene::validate`).
 
-use crate::bvh::Bvh;
-use crate::shapes::{LocalHit, Plane, Shape};
-use glam::{Vec2, Vec3, Vec3A};
+pub mod bvh;
+pub mod mesh;
+pub mod shapes;
+
+use crate::math::{Aabb, Ray, offset_ray_origin};
+use bvh::Bvh;
+use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};
-
-/// A ray `o + t·d`. `d` is a unit vector wherever a distance is compared with a length.
-#[derive(Clone, Copy, Debug)]
-pub struct Ray {
-    /// Origin.
-    pub o: Vec3A,
-    /// Direction.
-    pub d: Vec3A,
-}
-
-impl Ray {
-    /// A ray.
-    #[inline]
-    pub fn new(o: Vec3A, d: Vec3A) -> Self {
-        Self { o, d }
-    }
-
-    /// The point at distance `t`.
-    #[inline]
-    pub fn at(&self, t: f32) -> Vec3A {
-        self.o + t * self.d
-    }
-}
-
-/// An axis-aligned bounding box. The empty box has `min = +∞`, `max = −∞`.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct Aabb {
-    /// Lower corner.
-    pub min: Vec3,
-    /// Upper corner.
-    pub max: Vec3,
-}
-
-impl Default for Aabb {
-    fn default() -> Self {
-        Self::EMPTY
-    }
-}
-
-impl Aabb {
-    /// The empty box.
-    pub const EMPTY: Aabb = Aabb { min: Vec3::splat(f32::INFINITY), max: Vec3::splat(f32::NEG_INFINITY) };
-
-    /// The box around some points.
-    pub fn from_points(points: &[Vec3]) -> Self {
-        points.iter().fold(Self::EMPTY, |b, &p| b.grow(p))
-    }
-
-    /// The box grown to hold `p`.
-    #[inline]
-    pub fn grow(self, p: Vec3) -> Self {
-        Self { min: self.min.min(p), max: self.max.max(p) }
-    }
-
-    /// The union of two boxes.
-    #[inline]
-    pub fn union(self, o: Aabb) -> Self {
-        Self { min: self.min.min(o.min), max: self.max.max(o.max) }
-    }
-
-    /// The centre.
-    #[inline]
-    pub fn center(&self) -> Vec3 {
-        0.5 * (self.min + self.max)
-    }
-
-    /// Half the surface area (what the SAH needs); 0 for an empty box.
-    #[inline]
-    pub fn half_area(&self) -> f32 {
-        let d = (self.max - self.min).max(Vec3::ZERO);
-        d.x * d.y + d.y * d.z + d.z * d.x
-    }
-
-    /// Whether the box holds nothing.
-    pub fn is_empty(&self) -> bool {
-        self.min.x > self.max.x || self.min.y > self.max.y || self.min.z > self.max.z
-    }
-}
+use shapes::{LocalHit, Plane, Shape};
 
 /// Marks "no light" / "no index".
 pub const NONE: u32 = u32::MAX;
@@ -163,6 +93,14 @@ impl Hit {
     pub fn normal_towards(&self, w: Vec3A) -> Vec3A {
         if w.dot(self.n) >= 0.0 { self.n } else { -self.n }
     }
+
+    /// A ray leaving the hit point in direction `wi`, its origin offset along the geometric normal to the side
+    /// `wi` goes to, so that it does not hit this surface again.
+    #[inline]
+    pub fn spawn_ray(&self, wi: Vec3A) -> Ray {
+        let n = if wi.dot(self.n) > 0.0 { self.n } else { -self.n };
+        Ray::new(offset_ray_origin(self.p, n), wi)
+    }
 }
 
 /// All the surfaces of a scene.
@@ -230,7 +168,7 @@ impl Geometry {
                 let pr = &self.prims[i as usize];
                 let LocalHit { p, n, uv } = pr.shape.local_hit(ray, t);
                 let (n, ns, uv) = match pr.shape {
-                    crate::shapes::Shape::Triangle(tri) if tri.mesh != crate::shapes::NO_MESH => {
+                    crate::geometry::shapes::Shape::Triangle(tri) if tri.mesh != crate::geometry::shapes::NO_MESH => {
                         self.mesh_shading(tri.mesh, tri.face, uv, n)
                     }
                     _ => (n, n, uv),

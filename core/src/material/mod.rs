@@ -48,8 +48,11 @@
 //! under the material's path.
 
 use crate::Rgb;
-use crate::bsdf::{Bsdf, Bxdf};
+pub mod bsdf;
+
+use crate::error::FieldError;
 use crate::geometry::Hit;
+use bsdf::{Bsdf, Bxdf};
 use glam::{Vec2, Vec3A};
 use serde::de::{self, SeqAccess, Visitor};
 use serde::ser::SerializeSeq;
@@ -86,13 +89,13 @@ impl Texture {
     }
 
     /// Checks that the texture is a reflectance: every value finite and in `[0, 1]`. The error names `field`.
-    pub fn validate_reflectance(&self, field: &str) -> Result<(), String> {
+    pub fn validate_reflectance(&self, field: &str) -> Result<(), FieldError> {
         match self {
             Texture::Constant(c) => {
                 if c.to_array().iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)) {
                     Ok(())
                 } else {
-                    Err(format!("{field}: expected values in [0, 1], got [{}, {}, {}]", c.x, c.y, c.z))
+                    Err(FieldError::new(field, format!("expected values in [0, 1], got [{}, {}, {}]", c.x, c.y, c.z)))
                 }
             }
         }
@@ -325,24 +328,27 @@ impl Default for Material {
 }
 
 impl Material {
-    /// Checks every parameter's range. The message starts with the field's name (`albedo: …`); the scene
-    /// loader prefixes the material's path.
-    pub fn validate(&self) -> Result<(), String> {
+    /// Checks every parameter's range. The error names the parameter (`albedo`); the scene loader places it
+    /// under the material's path.
+    pub fn validate(&self) -> Result<(), FieldError> {
         match self {
             Material::Lambert { albedo } => albedo.validate_reflectance("albedo"),
             Material::Phong { diffuse, specular, exponent } => {
                 diffuse.validate_reflectance("diffuse")?;
                 specular.validate_reflectance("specular")?;
                 if !(exponent.is_finite() && *exponent >= 0.0) {
-                    return Err(format!("exponent: expected a finite number ≥ 0, got {exponent}"));
+                    return Err(FieldError::new("exponent", format!("expected a finite number ≥ 0, got {exponent}")));
                 }
                 match (diffuse, specular) {
                     (Texture::Constant(kd), Texture::Constant(ks)) => {
                         let sum = *kd + *ks;
                         if sum.max_element() > 1.0 {
-                            return Err(format!(
-                                "diffuse + specular = [{}, {}, {}] exceeds 1: the material would create energy",
-                                sum.x, sum.y, sum.z
+                            return Err(FieldError::new(
+                                "specular",
+                                format!(
+                                    "diffuse + specular = [{}, {}, {}] exceeds 1: the material would create energy",
+                                    sum.x, sum.y, sum.z
+                                ),
                             ));
                         }
                     }
@@ -358,14 +364,17 @@ impl Material {
                 color.validate_reflectance("color")?;
                 for (name, w) in [("diffuse", diffuse), ("specular", specular), ("transmission", transmission)] {
                     if !(w.is_finite() && *w >= 0.0) {
-                        return Err(format!("{name}: expected a weight ≥ 0, got {w}"));
+                        return Err(FieldError::new(name, format!("expected a weight ≥ 0, got {w}")));
                     }
                 }
                 let sum = diffuse + specular + transmission;
                 // A little slack for decimal weights such as 0.1 + 0.2 + 0.7 that round above 1 in f32.
                 if sum > 1.0 + 1e-6 {
-                    return Err(format!(
-                        "diffuse + specular + transmission = {sum} exceeds 1: the material would create energy"
+                    return Err(FieldError::new(
+                        "transmission",
+                        format!(
+                            "diffuse + specular + transmission = {sum} exceeds 1: the material would create energy"
+                        ),
                     ));
                 }
                 validate_eta(*eta)
@@ -425,14 +434,18 @@ impl Material {
     }
 }
 
-fn validate_eta(eta: f32) -> Result<(), String> {
-    if eta.is_finite() && eta > 0.0 { Ok(()) } else { Err(format!("eta: expected a finite number > 0, got {eta}")) }
+fn validate_eta(eta: f32) -> Result<(), FieldError> {
+    if eta.is_finite() && eta > 0.0 {
+        Ok(())
+    } else {
+        Err(FieldError::new("eta", format!("expected a finite number > 0, got {eta}")))
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fmath;
+    use crate::math::fmath;
     use std::collections::BTreeMap;
 
     #[derive(Debug, Deserialize, Serialize, PartialEq)]
@@ -446,7 +459,7 @@ mod tests {
 
     #[test]
     fn module_doc_snippet_parses_and_validates() {
-        let doc = include_str!("material.rs");
+        let doc = include_str!("mod.rs");
         let start = doc.find("//! ```toml").unwrap();
         let snippet: String = doc[start..]
             .lines()
@@ -566,7 +579,7 @@ mod tests {
         ];
         for (m, needle) in cases {
             let e = m.validate().unwrap_err();
-            assert!(e.contains(needle), "{m:?}: {e}");
+            assert!(e.to_string().contains(needle), "{m:?}: {e}");
         }
         let ok = Material::Mix { color: 0.5.into(), diffuse: 0.1, specular: 0.2, transmission: 0.7, eta: 1.5 };
         ok.validate().unwrap();
@@ -574,8 +587,8 @@ mod tests {
 
     #[test]
     fn bsdf_evaluates_textures_and_keeps_both_normals() {
-        use crate::bsdf::TransportMode;
         use crate::geometry::{NONE, PrimRef};
+        use crate::material::bsdf::TransportMode;
         let ns = fmath::normalize(Vec3A::new(0.1, 0.0, 1.0));
         let hit = Hit {
             t: 1.0,

@@ -13,7 +13,7 @@
 //! index is stored (pbrt's `LinearBVHNode`). The tree depth is capped at [`MAX_DEPTH`], so traversal uses a
 //! fixed stack and never allocates.
 
-use crate::geometry::Aabb;
+use crate::math::Aabb;
 use glam::{Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
@@ -394,7 +394,7 @@ fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::fmath;
+    use crate::math::fmath;
 
     fn cube(c: Vec3, h: f32) -> Aabb {
         Aabb { min: c - Vec3::splat(h), max: c + Vec3::splat(h) }
@@ -497,7 +497,7 @@ mod tests {
 
     #[test]
     fn closest_and_any_hit_agree_with_brute_force_on_boxes() {
-        let mut s = crate::rng::Sampler::new(3, crate::rng::Domain::Photon, 0, 0, 0);
+        let mut s = crate::math::rng::Sampler::new(3, crate::math::rng::Domain::Photon, 0, 0, 0);
         let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
         let b: Vec<Aabb> = (0..500).map(|_| cube(10.0 * v(), 0.2 * v().x)).collect();
         let rays: Vec<(Vec3A, Vec3A)> =

@@ -1,8 +1,13 @@
-//! Small geometric helpers: orthonormal frames, robust ray offsets, sampling warps, reflection, refraction and
-//! the Fresnel equations.
+//! Small geometric helpers: rays and boxes, orthonormal frames, robust ray offsets, sampling warps,
+//! reflection, refraction and the Fresnel equations; the portable float functions ([`fmath`]) and the
+//! deterministic random streams ([`rng`]).
 
-use crate::fmath;
+pub mod fmath;
+mod ray;
+pub mod rng;
+
 use glam::{Vec2, Vec3A};
+pub use ray::{Aabb, Ray};
 use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// An orthonormal frame whose `n` axis is local +z.

@@ -1,0 +1,77 @@
+//! `path` and `direct`: the unbiased path tracer that serves as the reference for every accuracy comparison,
+//! and direct lighting with specular recursion.
+//!
+//! Both follow mirror and glass (delta lobes) from the camera. At each non-delta vertex the path tracer
+//! estimates direct light by sampling one light (chosen by power) and by sampling the BSDF, weighting the two
+//! with the power heuristic (Veach 1997, §9.2); the BSDF sample then continues the path, ended by Russian
+//! roulette on the throughput. The direct integrator stops after that first BSDF sample.
+
+use super::sample_one_light;
+use crate::Rgb;
+use crate::geometry::NONE;
+use crate::material::bsdf::TransportMode;
+use crate::math::rng::Sampler;
+use crate::math::{Ray, power_heuristic};
+use crate::prepare::Prepared;
+
+/// Bounces before Russian roulette may end a path.
+const RR_START: u32 = 3;
+
+/// Radiance arriving along `ray` by path tracing with at most `max_depth` bounces; with `direct_only`, the
+/// path ends after the first non-delta BSDF sample (direct light, through mirror and glass).
+pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &mut u64, direct_only: bool) -> Rgb {
+    let mut l = Rgb::ZERO;
+    let mut beta = Rgb::ONE;
+    // The last bounce was a delta lobe (or the camera): emission is counted in full, not by MIS.
+    let mut prev_delta = true;
+    let mut prev_pdf = 0.0f32;
+    let mut finishing = false;
+    for depth in 0..=max_depth {
+        *rays += 1;
+        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+        let wo = -ray.d;
+        if hit.light != NONE
+            && let Some(light) = prep.lights.lights.get(hit.light as usize)
+        {
+            let le = light.le(&hit, wo);
+            if le != Rgb::ZERO {
+                if prev_delta {
+                    l += beta * le;
+                } else {
+                    let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(&ray, &hit);
+                    l += beta * le * power_heuristic(prev_pdf, light_pdf);
+                }
+            }
+        }
+        if finishing || depth == max_depth {
+            break;
+        }
+        let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        let bsdf = material.bsdf(&hit);
+        if bsdf.has_non_delta() {
+            l += beta * sample_one_light(prep, &hit, &bsdf, wo, s, rays, true);
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
+            break;
+        }
+        beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        prev_delta = bs.delta;
+        prev_pdf = bs.pdf;
+        if direct_only && !bs.delta {
+            finishing = true;
+        } else if depth + 1 >= RR_START {
+            let q = beta.max_element().min(0.95);
+            if s.next_f32() >= q {
+                break;
+            }
+            beta /= q;
+        }
+        if !beta.is_finite() {
+            break;
+        }
+        ray = hit.spawn_ray(bs.wi);
+    }
+    l
+}

@@ -1,0 +1,197 @@
+//! From a parsed [`Scene`] to the [`Prepared`] value that renders, in steps that callers compose:
+//! [`Prepared::new`] loads meshes, gathers primitives under a BVH, resolves materials to indices and builds the
+//! lights; [`Prepared::with_photon_maps`] traces the photon maps the method needs ([`photons`]); [`blobs`]
+//! encodes the result for the wire and the caches.
+
+pub mod blobs;
+pub mod photons;
+
+use crate::Rgb;
+use crate::camera::Camera;
+use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
+use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
+use crate::light::{Light, LightSet};
+use crate::material::Material;
+use crate::photon::{Estimator, Gather, PhotonMaps};
+use crate::scene::{Emission, GatherMode, LightSpec, Object, RenderSettings, Scene, SceneError};
+use glam::Vec3A;
+use serde::{Deserialize, Serialize};
+
+/// Everything a worker needs to render any pixel of a scene.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct Prepared {
+    /// The camera.
+    pub camera: Camera,
+    /// Surfaces and their BVH.
+    pub geometry: Geometry,
+    /// Materials, indexed by primitives.
+    pub materials: Vec<Material>,
+    /// Lights.
+    pub lights: LightSet,
+    /// Render settings.
+    pub settings: RenderSettings,
+    /// Photon maps, when the method needs them.
+    pub photons: Option<PhotonMaps>,
+}
+
+impl Prepared {
+    /// Loads meshes, builds the BVH, resolves materials to indices and builds the lights, for a validated
+    /// scene; `scene_path` names the scene in errors. Photon maps are a separate step
+    /// ([`Prepared::with_photon_maps`]): `photons` is `None` here.
+    pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
+        let materials: Vec<Material> = scene.materials.values().cloned().collect();
+        let (mut geometry, emitters) = geometry(scene, scene_path)?;
+        let lights = lights(scene, &mut geometry, &emitters);
+        Ok(Self {
+            camera: Camera::new(&scene.camera),
+            geometry,
+            materials,
+            lights,
+            settings: scene.render.clone(),
+            photons: None,
+        })
+    }
+
+    /// The gather radius in scene units: `render.photons.radius`, or 2% of the diagonal of the bounding box of
+    /// the bounded primitives (1 unit for a scene of planes only).
+    pub fn photon_radius(&self) -> f32 {
+        self.settings.photons.radius.unwrap_or_else(|| {
+            let b = self.geometry.bounds();
+            let d = (b.max - b.min).length();
+            if d.is_finite() && d > 0.0 { 0.02 * d } else { 1.0 }
+        })
+    }
+
+    /// The radiance estimator of the photon settings.
+    pub fn estimator(&self) -> Estimator {
+        let ph = &self.settings.photons;
+        let radius = self.photon_radius();
+        let gather = match ph.gather {
+            GatherMode::KNearest => Gather::KNearest { k: ph.k, max_radius: radius },
+            GatherMode::Radius => Gather::Radius { radius },
+        };
+        Estimator { gather, kernel: ph.kernel, disc: ph.disc, same_object: ph.same_object }
+    }
+
+    /// Loads and prepares a scene file, with the photon maps its method needs.
+    pub fn load(path: &std::path::Path) -> Result<Self, SceneError> {
+        let scene = Scene::load(path)?;
+        Self::new(&scene, path)?.with_photon_maps(path)
+    }
+}
+
+/// The scene's surfaces under one BVH, and the emission of each light-carrying primitive by its light index
+/// (each primitive's `light` holds that index until [`lights`] renumbers it).
+fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Vec<Emission>), SceneError> {
+    let names: Vec<&String> = scene.materials.keys().collect();
+    let material_index = |name: &str, field: String| -> Result<u32, SceneError> {
+        names.iter().position(|n| n.as_str() == name).map(|i| i as u32).ok_or_else(|| SceneError::Invalid {
+            path: scene_path.into(),
+            line: None,
+            field,
+            message: format!("no material named `{name}`"),
+        })
+    };
+    let mut prims: Vec<Primitive> = Vec::new();
+    let mut planes = Vec::new();
+    let mut meshes = Vec::new();
+    // Emission of each light-carrying primitive, by light index, before the BVH reorders primitives.
+    let mut emitters: Vec<Emission> = Vec::new();
+    for (i, o) in scene.objects.iter().enumerate() {
+        let object = i as u32;
+        let material = material_index(o.material(), format!("objects[{i}].material"))?;
+        let mut push = |shape: Shape, emission: &Option<Emission>| {
+            let light = match emission {
+                Some(e) if e.radiance.max_element() > 0.0 && shape.area() > 0.0 => {
+                    emitters.push(*e);
+                    (emitters.len() - 1) as u32
+                }
+                _ => NONE,
+            };
+            prims.push(Primitive { shape, material, light, object });
+        };
+        match o {
+            Object::Sphere { center, radius, emission, .. } => {
+                push(Shape::Sphere(Sphere { center: *center, radius: *radius }), emission)
+            }
+            Object::Plane { point, normal, .. } => planes.push(PlanePrimitive {
+                plane: Plane { point: *point, normal: normal.normalize() },
+                material,
+                object,
+            }),
+            Object::Rect { emission, .. } => {
+                let rect = o.rect().map_err(|e| {
+                    let e = e.within(&format!("objects[{i}]"));
+                    SceneError::Invalid { path: scene_path.into(), line: None, field: e.field, message: e.message }
+                })?;
+                push(Shape::Rect(rect), emission)
+            }
+            Object::Triangle { vertices, emission, .. } => {
+                push(Shape::Triangle(Triangle::new(vertices[0], vertices[1], vertices[2])), emission)
+            }
+            Object::Mesh { file, transform, emission, .. } => {
+                let path = scene.base_dir.join(file);
+                let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix()).map_err(|source| {
+                    SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
+                })?;
+                let mesh_index = meshes.len() as u32;
+                for (face, t) in mesh.triangles.iter().enumerate() {
+                    let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };
+                    // Degenerate faces can never be hit; keep them out of the BVH and the lights.
+                    if tri.area() > 0.0 {
+                        push(Shape::Triangle(tri), emission);
+                    }
+                }
+                meshes.push(mesh.shading);
+            }
+        }
+    }
+    Ok((Geometry::new(prims, planes, meshes), emitters))
+}
+
+/// The lights: area lights in scene order (whatever order the BVH put their primitives in), then point
+/// lights; each emitting primitive is pointed at its final light index.
+fn lights(scene: &Scene, geometry: &mut Geometry, emitters: &[Emission]) -> LightSet {
+    let mut lights: Vec<Light> = Vec::new();
+    let mut area_lights: Vec<(u32, Light)> = Vec::new();
+    for (pi, p) in geometry.prims.iter().enumerate() {
+        if p.light != NONE {
+            let e = emitters[p.light as usize];
+            area_lights.push((
+                p.light,
+                Light::Area {
+                    prim: pi as u32,
+                    le: Rgb::from(e.radiance),
+                    two_sided: e.two_sided,
+                    area: p.shape.area(),
+                },
+            ));
+        }
+    }
+    // Keep lights in scene order (by their original index), whatever order the BVH put primitives in.
+    area_lights.sort_by_key(|(k, _)| *k);
+    lights.extend(area_lights.into_iter().map(|(_, l)| l));
+    for l in &scene.lights {
+        match l {
+            LightSpec::Point { position, intensity, power } => {
+                let intensity = match (intensity, power) {
+                    (Some(i), _) => Rgb::from(*i),
+                    (None, Some(p)) => Rgb::from(*p) / (4.0 * std::f32::consts::PI),
+                    (None, None) => Rgb::ZERO,
+                };
+                lights.push(Light::Point { p: Vec3A::from(*position), intensity });
+            }
+        }
+    }
+    // Primitives point at their light by the final light index.
+    let mut light_of_prim = vec![NONE; geometry.prims.len()];
+    for (li, l) in lights.iter().enumerate() {
+        if let Light::Area { prim, .. } = l {
+            light_of_prim[*prim as usize] = li as u32;
+        }
+    }
+    for (p, l) in geometry.prims.iter_mut().zip(light_of_prim) {
+        p.light = l;
+    }
+    LightSet::new(lights)
+}

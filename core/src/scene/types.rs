@@ -1,0 +1,477 @@
+//! The value types of a scene file: camera, render settings (method, photons), objects, lights, transforms.
+//! Every field has a documented default; unknown fields are errors.
+
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+fn default_up() -> Vec3 {
+    Vec3::Y
+}
+fn default_fov() -> f32 {
+    40.0
+}
+fn default_width() -> u32 {
+    512
+}
+fn default_height() -> u32 {
+    512
+}
+
+/// A pinhole or thin-lens camera.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CameraSpec {
+    /// Position of the eye (required).
+    pub eye: Vec3,
+    /// The point looked at (required).
+    pub look_at: Vec3,
+    /// Up direction; default `[0, 1, 0]`.
+    #[serde(default = "default_up")]
+    pub up: Vec3,
+    /// Vertical field of view in degrees, in (0, 180); default 40.
+    #[serde(default = "default_fov")]
+    pub fov: f32,
+    /// Image width in pixels; default 512.
+    #[serde(default = "default_width")]
+    pub width: u32,
+    /// Image height in pixels; default 512.
+    #[serde(default = "default_height")]
+    pub height: u32,
+    /// Lens radius for depth of field; default 0 (a pinhole).
+    #[serde(default)]
+    pub aperture: f32,
+    /// Distance of the plane in focus; default the distance from `eye` to `look_at`.
+    #[serde(default)]
+    pub focus_distance: Option<f32>,
+}
+
+/// How pixels are computed: the method, in the scene file (`render.integrator`) and on the command line.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Integrator {
+    /// Unbiased path tracing with next-event estimation, MIS and Russian roulette (the reference).
+    #[default]
+    Path,
+    /// Direct lighting at the first non-specular hit, following mirror and glass.
+    Direct,
+    /// Direct visualisation of the global photon map at the first non-specular hit (what the origin did).
+    PhotonMap,
+    /// Jensen's two passes: direct light by shadow rays, caustics from the caustic map, indirect light from
+    /// the global map through final gathering.
+    FinalGather,
+    /// Stochastic progressive photon mapping (Hachisuka & Jensen 2009): passes of fresh photons with a
+    /// shrinking per-pixel radius; consistent, it converges to the path tracer's answer.
+    Progressive,
+}
+
+impl Integrator {
+    /// Every integrator, in the order the documentation lists them.
+    pub const ALL: [Integrator; 5] =
+        [Integrator::Path, Integrator::Direct, Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive];
+
+    /// The name used in scene files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Integrator::Path => "path",
+            Integrator::Direct => "direct",
+            Integrator::PhotonMap => "photon-map",
+            Integrator::FinalGather => "final-gather",
+            Integrator::Progressive => "progressive",
+        }
+    }
+
+    /// Whether this method needs photon maps built before rendering.
+    pub fn needs_photon_maps(self) -> bool {
+        matches!(self, Integrator::PhotonMap | Integrator::FinalGather)
+    }
+}
+
+impl std::fmt::Display for Integrator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A method name that is none of [`Integrator::ALL`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct UnknownIntegrator(pub String);
+
+impl std::fmt::Display for UnknownIntegrator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let names: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
+        write!(f, "unknown integrator `{}`: expected one of {}", self.0, names.join(", "))
+    }
+}
+
+impl std::error::Error for UnknownIntegrator {}
+
+impl std::str::FromStr for Integrator {
+    type Err = UnknownIntegrator;
+    fn from_str(s: &str) -> Result<Self, UnknownIntegrator> {
+        Self::ALL.into_iter().find(|i| i.name() == s).ok_or_else(|| UnknownIntegrator(s.to_string()))
+    }
+}
+
+/// How photons are gathered for a radiance estimate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum GatherMode {
+    /// The `k` nearest photons, within `radius`.
+    #[default]
+    KNearest,
+    /// Every photon within `radius`.
+    Radius,
+}
+
+fn default_global() -> u32 {
+    200_000
+}
+fn default_caustic() -> u32 {
+    200_000
+}
+fn default_k() -> u32 {
+    100
+}
+fn default_kernel() -> crate::photon::Kernel {
+    crate::photon::Kernel::Epanechnikov
+}
+fn default_final_gather_rays() -> u32 {
+    32
+}
+fn default_passes() -> u32 {
+    32
+}
+fn default_pass_photons() -> u32 {
+    100_000
+}
+fn default_alpha() -> f32 {
+    2.0 / 3.0
+}
+
+/// Photon-mapping settings: the `[render.photons]` table. Only the photon methods read it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhotonSettings {
+    /// Photon paths emitted for the global map; default 200,000.
+    #[serde(default = "default_global")]
+    pub global: u32,
+    /// Photon paths emitted for the caustic map (built only for `final-gather` on scenes with mirror or
+    /// glass); default 200,000.
+    #[serde(default = "default_caustic")]
+    pub caustic: u32,
+    /// `k-nearest` (default) or `radius`.
+    #[serde(default)]
+    pub gather: GatherMode,
+    /// Photons per k-nearest estimate (≥ 2); default 100.
+    #[serde(default = "default_k")]
+    pub k: u32,
+    /// Fixed gather radius, and the largest k-nearest radius, in scene units; default 2% of the diagonal of
+    /// the scene's bounding box. Progressive photon mapping starts from it.
+    #[serde(default)]
+    pub radius: Option<f32>,
+    /// Density-estimation kernel: `box`, `cone`, `epanechnikov` (default), `gaussian`, `linear`, `quadratic`.
+    #[serde(default = "default_kernel")]
+    pub kernel: crate::photon::Kernel,
+    /// Disc filter: ignore photons farther from the tangent plane than this fraction of the radius (against
+    /// light leaking round corners and through thin walls); default off.
+    #[serde(default)]
+    pub disc: Option<f32>,
+    /// Use only photons stored on the object that was hit (the origin's filter); default false.
+    #[serde(default)]
+    pub same_object: bool,
+    /// Final-gather rays per camera hit (`final-gather`); default 32.
+    #[serde(default = "default_final_gather_rays")]
+    pub final_gather_rays: u32,
+    /// Passes of progressive photon mapping; default 32.
+    #[serde(default = "default_passes")]
+    pub passes: u32,
+    /// Photon paths per progressive pass; default 100,000.
+    #[serde(default = "default_pass_photons")]
+    pub pass_photons: u32,
+    /// Progressive radius reduction α in (0, 1); default 2/3.
+    #[serde(default = "default_alpha")]
+    pub alpha: f32,
+}
+
+impl Default for PhotonSettings {
+    fn default() -> Self {
+        Self {
+            global: default_global(),
+            caustic: default_caustic(),
+            gather: GatherMode::KNearest,
+            k: default_k(),
+            radius: None,
+            kernel: default_kernel(),
+            disc: None,
+            same_object: false,
+            final_gather_rays: default_final_gather_rays(),
+            passes: default_passes(),
+            pass_photons: default_pass_photons(),
+            alpha: default_alpha(),
+        }
+    }
+}
+
+fn default_spp() -> u32 {
+    16
+}
+fn default_seed() -> u64 {
+    1
+}
+fn default_max_depth() -> u32 {
+    16
+}
+
+/// Render settings.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderSettings {
+    /// Samples per pixel (≥ 1); default 16.
+    #[serde(default = "default_spp")]
+    pub spp: u32,
+    /// Seed of every random stream; default 1.
+    #[serde(default = "default_seed")]
+    pub seed: u64,
+    /// Longest path in bounces (≥ 1); default 16. Russian roulette ends most paths sooner.
+    #[serde(default = "default_max_depth")]
+    pub max_depth: u32,
+    /// The integrator; default `"path"`.
+    #[serde(default)]
+    pub integrator: Integrator,
+    /// Exposure in stops applied before tone mapping to 8-bit images; default 0.
+    #[serde(default)]
+    pub exposure: f32,
+    /// Photon-mapping settings.
+    #[serde(default)]
+    pub photons: PhotonSettings,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            spp: default_spp(),
+            seed: default_seed(),
+            max_depth: default_max_depth(),
+            integrator: Integrator::Path,
+            exposure: 0.0,
+            photons: PhotonSettings::default(),
+        }
+    }
+}
+
+/// Scale of a mesh: one factor or one per axis. In the scene file: a number or `[x, y, z]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum Scale {
+    /// The same factor on every axis.
+    Uniform(f32),
+    /// One factor per axis.
+    PerAxis(Vec3),
+}
+
+impl Default for Scale {
+    fn default() -> Self {
+        Scale::Uniform(1.0)
+    }
+}
+
+// By hand rather than `#[serde(untagged)]`, whose error ("data did not match any variant") says nothing of
+// what was expected.
+impl<'de> Deserialize<'de> for Scale {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_any(ScaleVisitor)
+    }
+}
+
+/// Reads a number or an `[x, y, z]` array.
+struct ScaleVisitor;
+
+impl<'de> serde::de::Visitor<'de> for ScaleVisitor {
+    type Value = Scale;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a number or an [x, y, z] array")
+    }
+
+    fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<Scale, E> {
+        Ok(Scale::Uniform(v as f32))
+    }
+
+    fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<Scale, E> {
+        Ok(Scale::Uniform(v as f32))
+    }
+
+    fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<Scale, E> {
+        Ok(Scale::Uniform(v as f32))
+    }
+
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<Scale, A::Error> {
+        let mut v = [0.0f32; 3];
+        for (i, x) in v.iter_mut().enumerate() {
+            *x = seq.next_element()?.ok_or_else(|| serde::de::Error::invalid_length(i, &self))?;
+        }
+        if seq.next_element::<serde::de::IgnoredAny>()?.is_some() {
+            return Err(serde::de::Error::invalid_length(4, &self));
+        }
+        Ok(Scale::PerAxis(Vec3::from_array(v)))
+    }
+}
+
+impl Scale {
+    /// Per-axis factors.
+    pub fn to_vec3(self) -> Vec3 {
+        match self {
+            Scale::Uniform(s) => Vec3::splat(s),
+            Scale::PerAxis(v) => v,
+        }
+    }
+}
+
+/// Object-to-world transform of a mesh: scale, then rotate (degrees about x, then y, then z), then translate.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Transform {
+    /// Translation; default 0.
+    #[serde(default)]
+    pub translate: Vec3,
+    /// Rotation in degrees about x, y and z, applied in that order; default 0.
+    #[serde(default)]
+    pub rotate: Vec3,
+    /// Scale; default 1.
+    #[serde(default)]
+    pub scale: Scale,
+}
+
+impl Transform {
+    /// The matrix `world_from_object`.
+    pub fn matrix(&self) -> glam::Affine3A {
+        let r = self.rotate * (std::f32::consts::PI / 180.0);
+        let rot = glam::Quat::from_euler(glam::EulerRot::ZYX, r.z, r.y, r.x);
+        glam::Affine3A::from_scale_rotation_translation(self.scale.to_vec3(), rot, self.translate)
+    }
+}
+
+/// Emission that turns a surface into a diffuse area light.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Emission {
+    /// Emitted radiance (W·sr⁻¹·m⁻²) per channel.
+    pub radiance: Vec3,
+    /// Emit from both sides; default false (only towards the surface normal).
+    #[serde(default)]
+    pub two_sided: bool,
+}
+
+/// A surface in the scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Object {
+    /// A sphere.
+    Sphere {
+        /// Centre.
+        center: Vec3,
+        /// Radius (> 0).
+        radius: f32,
+        /// Material name.
+        material: String,
+        /// Area light emission, if any.
+        #[serde(default)]
+        emission: Option<Emission>,
+    },
+    /// An infinite plane through `point` facing `normal`.
+    Plane {
+        /// A point on the plane.
+        point: Vec3,
+        /// Normal (need not be unit length).
+        normal: Vec3,
+        /// Material name.
+        material: String,
+    },
+    /// A rectangle: either `center`, `normal`, `tangent`, `width`, `height` (the width runs along the tangent),
+    /// or `corner` with edges `u` and `v` (a parallelogram whose normal is `u × v`).
+    Rect {
+        /// Centre (with `normal`, `tangent`, `width`, `height`).
+        #[serde(default)]
+        center: Option<Vec3>,
+        /// Facing direction.
+        #[serde(default)]
+        normal: Option<Vec3>,
+        /// Direction of the width; default: any direction perpendicular to the normal.
+        #[serde(default)]
+        tangent: Option<Vec3>,
+        /// Extent along the tangent.
+        #[serde(default)]
+        width: Option<f32>,
+        /// Extent along `normal × tangent`.
+        #[serde(default)]
+        height: Option<f32>,
+        /// A corner (with `u` and `v`).
+        #[serde(default)]
+        corner: Option<Vec3>,
+        /// First edge from the corner.
+        #[serde(default)]
+        u: Option<Vec3>,
+        /// Second edge from the corner.
+        #[serde(default)]
+        v: Option<Vec3>,
+        /// Material name.
+        material: String,
+        /// Area light emission, if any.
+        #[serde(default)]
+        emission: Option<Emission>,
+    },
+    /// A triangle; its normal is `(p1 − p0) × (p2 − p0)`.
+    Triangle {
+        /// The three vertices.
+        vertices: [Vec3; 3],
+        /// Material name.
+        material: String,
+        /// Area light emission, if any.
+        #[serde(default)]
+        emission: Option<Emission>,
+    },
+    /// A Wavefront OBJ mesh.
+    Mesh {
+        /// Path of the .obj file, relative to the scene file.
+        file: PathBuf,
+        /// Placement in the world.
+        #[serde(default)]
+        transform: Transform,
+        /// Material name (the OBJ's own materials are ignored).
+        material: String,
+        /// Area light emission, if any.
+        #[serde(default)]
+        emission: Option<Emission>,
+    },
+}
+
+impl Object {
+    /// The material name.
+    pub fn material(&self) -> &str {
+        match self {
+            Object::Sphere { material, .. }
+            | Object::Plane { material, .. }
+            | Object::Rect { material, .. }
+            | Object::Triangle { material, .. }
+            | Object::Mesh { material, .. } => material,
+        }
+    }
+}
+
+/// A point light, given by its radiant intensity or its total power.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum LightSpec {
+    /// An isotropic point light. Give exactly one of `intensity` (W/sr) and `power` (W, = 4π·intensity).
+    Point {
+        /// Position.
+        position: Vec3,
+        /// Radiant intensity per channel (W/sr).
+        #[serde(default)]
+        intensity: Option<Vec3>,
+        /// Total emitted power per channel (W).
+        #[serde(default)]
+        power: Option<Vec3>,
+    },
+}

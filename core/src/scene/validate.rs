@@ -1,0 +1,249 @@
+//! Scene validation: every value the types accept but the renderer cannot use (ranges, finiteness, names that
+//! must exist), reported as a [`FieldError`] that names the field; `Scene::parse` adds the file and line.
+
+use super::{LightSpec, Object, Scene};
+use crate::error::FieldError;
+use crate::geometry::shapes::Rect;
+use glam::Vec3;
+
+impl Scene {
+    /// Checks every value the types cannot: ranges, finiteness, names that must exist. The first error
+    /// found, in the order camera, render, materials, objects, lights.
+    pub(super) fn check(&self) -> Result<(), FieldError> {
+        self.check_camera()?;
+        self.check_render()?;
+        for (name, m) in &self.materials {
+            m.validate().map_err(|e| e.within(&format!("materials.{name}")))?;
+        }
+        for (i, o) in self.objects.iter().enumerate() {
+            self.check_object(i, o)?;
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            check_light(i, l)?;
+        }
+        Ok(())
+    }
+
+    fn check_camera(&self) -> Result<(), FieldError> {
+        let c = &self.camera;
+        finite3("camera.eye", c.eye)?;
+        finite3("camera.look_at", c.look_at)?;
+        nonzero3("camera.up", c.up)?;
+        let view = c.look_at - c.eye;
+        if !view.is_finite() || view.length() == 0.0 {
+            return Err(FieldError::new("camera.look_at", "must differ from camera.eye"));
+        }
+        // Relative, so that a nearly parallel `up` is caught whatever the scene's scale.
+        if c.up.cross(view).length() <= 1e-6 * c.up.length() * view.length() {
+            return Err(FieldError::new("camera.up", "must not be parallel to the viewing direction"));
+        }
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(FieldError::new("camera.fov", format!("expected degrees in (0, 180), found {}", c.fov)));
+        }
+        for (name, v) in [("camera.width", c.width), ("camera.height", c.height)] {
+            if v == 0 || v > 65_536 {
+                return Err(FieldError::new(name, format!("expected a pixel count in 1..=65536, found {v}")));
+            }
+        }
+        positive_or_zero("camera.aperture", c.aperture)?;
+        if let Some(f) = c.focus_distance {
+            positive("camera.focus_distance", f)?;
+        }
+        Ok(())
+    }
+
+    fn check_render(&self) -> Result<(), FieldError> {
+        let r = &self.render;
+        if r.spp == 0 {
+            return Err(FieldError::new("render.spp", "expected at least 1 sample per pixel"));
+        }
+        if r.max_depth == 0 {
+            return Err(FieldError::new("render.max_depth", "expected at least 1 bounce"));
+        }
+        let ph = &r.photons;
+        let pf = |s: &str| format!("render.photons.{s}");
+        if ph.global == 0 {
+            return Err(FieldError::new(pf("global"), "expected at least 1 photon path"));
+        }
+        if ph.k < 2 {
+            return Err(FieldError::new(pf("k"), format!("expected at least 2 photons, found {}", ph.k)));
+        }
+        if let Some(radius) = ph.radius {
+            positive(&pf("radius"), radius)?;
+        }
+        if let Some(disc) = ph.disc {
+            positive(&pf("disc"), disc)?;
+        }
+        if !(ph.alpha > 0.0 && ph.alpha < 1.0) {
+            return Err(FieldError::new(pf("alpha"), format!("expected a number in (0, 1), found {}", ph.alpha)));
+        }
+        for (name, v) in
+            [("passes", ph.passes), ("pass_photons", ph.pass_photons), ("final_gather_rays", ph.final_gather_rays)]
+        {
+            if v == 0 {
+                return Err(FieldError::new(pf(name), "expected at least 1"));
+            }
+        }
+        if !r.exposure.is_finite() {
+            return Err(FieldError::new("render.exposure", "expected a finite number of stops"));
+        }
+        Ok(())
+    }
+
+    fn check_object(&self, i: usize, o: &Object) -> Result<(), FieldError> {
+        let f = |s: &str| format!("objects[{i}].{s}");
+        if !self.materials.contains_key(o.material()) {
+            let known: Vec<&str> = self.materials.keys().map(String::as_str).collect();
+            return Err(FieldError::new(
+                f("material"),
+                format!("no material named `{}` (defined: {})", o.material(), known.join(", ")),
+            ));
+        }
+        let emission = match o {
+            Object::Sphere { center, radius, emission, .. } => {
+                finite3(&f("center"), *center)?;
+                positive(&f("radius"), *radius)?;
+                emission
+            }
+            Object::Plane { point, normal, .. } => {
+                finite3(&f("point"), *point)?;
+                nonzero3(&f("normal"), *normal)?;
+                &None
+            }
+            Object::Rect { emission, .. } => {
+                o.rect().map_err(|e| e.within(&format!("objects[{i}]")))?;
+                emission
+            }
+            Object::Triangle { vertices, emission, .. } => {
+                for (k, v) in vertices.iter().enumerate() {
+                    finite3(&f(&format!("vertices[{k}]")), *v)?;
+                }
+                // A triangle without area can never be hit: as a light it would silently emit nothing.
+                let [p0, p1, p2] = *vertices;
+                if (p1 - p0).cross(p2 - p0).length() == 0.0 {
+                    return Err(FieldError::new(f("vertices"), "the vertices are collinear: the triangle has no area"));
+                }
+                emission
+            }
+            Object::Mesh { transform, emission, .. } => {
+                finite3(&f("transform.translate"), transform.translate)?;
+                finite3(&f("transform.rotate"), transform.rotate)?;
+                let s = transform.scale.to_vec3();
+                if !s.is_finite() || s.x == 0.0 || s.y == 0.0 || s.z == 0.0 {
+                    return Err(FieldError::new(
+                        f("transform.scale"),
+                        format!("expected finite non-zero factors, found {s}"),
+                    ));
+                }
+                emission
+            }
+        };
+        if let Some(e) = emission {
+            let v = e.radiance;
+            if !v.is_finite() || v.min_element() < 0.0 {
+                return Err(FieldError::new(
+                    f("emission.radiance"),
+                    format!("expected finite non-negative radiance, found {v}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Object {
+    /// The rectangle this object describes, from either of its two forms; errors name the field.
+    pub fn rect(&self) -> Result<Rect, FieldError> {
+        let Object::Rect { center, normal, tangent, width, height, corner, u, v, .. } = self else {
+            return Err(FieldError::new("type", "not a rectangle"));
+        };
+        match (center, corner) {
+            (Some(c), None) => {
+                if u.is_some() || v.is_some() {
+                    let field = if u.is_some() { "u" } else { "v" };
+                    return Err(FieldError::new(field, "`u` and `v` go with `corner`, not with `center`"));
+                }
+                finite3("center", *c)?;
+                let n = normal.ok_or_else(|| FieldError::new("normal", "a rectangle with `center` needs `normal`"))?;
+                nonzero3("normal", n)?;
+                let t = match tangent {
+                    Some(t) => {
+                        nonzero3("tangent", *t)?;
+                        if t.cross(n).length() <= 1e-6 * t.length() * n.length() {
+                            return Err(FieldError::new("tangent", "must not be parallel to the normal"));
+                        }
+                        *t
+                    }
+                    None => crate::math::Frame::from_normal(glam::Vec3A::from(n.normalize())).s.into(),
+                };
+                let w = width.ok_or_else(|| FieldError::new("width", "a rectangle with `center` needs `width`"))?;
+                let h = height.ok_or_else(|| FieldError::new("height", "a rectangle with `center` needs `height`"))?;
+                positive("width", w)?;
+                positive("height", h)?;
+                Ok(Rect::from_center(*c, n, t, w, h))
+            }
+            (None, Some(c)) => {
+                if normal.is_some() || tangent.is_some() || width.is_some() || height.is_some() {
+                    return Err(FieldError::new(
+                        "corner",
+                        "use either `corner`, `u`, `v` or `center`, `normal`, `tangent`, `width`, `height`",
+                    ));
+                }
+                finite3("corner", *c)?;
+                let u = u.ok_or_else(|| FieldError::new("u", "a rectangle with `corner` needs edges `u` and `v`"))?;
+                let v = v.ok_or_else(|| FieldError::new("v", "a rectangle with `corner` needs edges `u` and `v`"))?;
+                finite3("u", u)?;
+                finite3("v", v)?;
+                if u.cross(v).length() == 0.0 {
+                    return Err(FieldError::new("v", "the edges `u` and `v` must not be parallel or zero"));
+                }
+                Ok(Rect { corner: *c, u, v })
+            }
+            (Some(_), Some(_)) => Err(FieldError::new("corner", "give `center` or `corner`, not both")),
+            (None, None) => Err(FieldError::new("center", "a rectangle needs `center` (or `corner`)")),
+        }
+    }
+}
+
+fn check_light(i: usize, l: &LightSpec) -> Result<(), FieldError> {
+    let f = |s: &str| format!("lights[{i}].{s}");
+    match l {
+        LightSpec::Point { position, intensity, power } => {
+            finite3(&f("position"), *position)?;
+            let (name, v) = match (intensity, power) {
+                (Some(i), None) => ("intensity", *i),
+                (None, Some(p)) => ("power", *p),
+                _ => return Err(FieldError::new(f("intensity"), "give exactly one of `intensity` and `power`")),
+            };
+            if !v.is_finite() || v.min_element() < 0.0 {
+                return Err(FieldError::new(f(name), format!("expected finite non-negative values, found {v}")));
+            }
+        }
+    }
+    Ok(())
+}
+
+fn finite3(field: &str, v: Vec3) -> Result<(), FieldError> {
+    if v.is_finite() { Ok(()) } else { Err(FieldError::new(field, format!("expected finite numbers, found {v}"))) }
+}
+
+fn nonzero3(field: &str, v: Vec3) -> Result<(), FieldError> {
+    finite3(field, v)?;
+    if v.length() > 0.0 { Ok(()) } else { Err(FieldError::new(field, "expected a non-zero vector")) }
+}
+
+fn positive(field: &str, x: f32) -> Result<(), FieldError> {
+    if x.is_finite() && x > 0.0 {
+        Ok(())
+    } else {
+        Err(FieldError::new(field, format!("expected a positive number, found {x}")))
+    }
+}
+
+fn positive_or_zero(field: &str, x: f32) -> Result<(), FieldError> {
+    if x.is_finite() && x >= 0.0 {
+        Ok(())
+    } else {
+        Err(FieldError::new(field, format!("expected a non-negative number, found {x}")))
+    }
+}
