@@ -1,7 +1,7 @@
 //! Where the workers come from: a host list file, an address list, worker processes started on loopback, or
 //! one worker server inside this process (the default).
 
-use crate::farm::WorkerAddr;
+use crate::session::WorkerAddr;
 use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};

@@ -118,14 +118,14 @@ pub struct Timed {
 pub async fn render_timed(
     scene: &Scene,
     scene_path: &Path,
-    addrs: &[crate::farm::WorkerAddr],
+    addrs: &[crate::session::WorkerAddr],
     options: crate::farm::Options,
 ) -> Result<Timed> {
     let t0 = Instant::now();
     let prep = Prepared::new(scene, scene_path)?;
     let (width, height) = (prep.camera.width, prep.camera.height);
     let (scene_blob, photons, frame) = (prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?);
-    let job = crate::farm::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
+    let job = crate::job::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
     drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
