@@ -132,12 +132,10 @@ impl FarmArgs {
         }
         let (spec, hosts_token, hosts_ca) = match (&self.hosts, &self.workers, self.local) {
             (Some(path), _, _) => {
-                let h = fleet::read_hosts(path).map_err(anyhow::Error::msg)?;
+                let h = fleet::read_hosts(path)?;
                 (fleet::FleetSpec::Remote(h.workers), h.token_file, h.tls_ca)
             }
-            (None, Some(list), _) => {
-                (fleet::FleetSpec::Remote(fleet::parse_workers(list).map_err(anyhow::Error::msg)?), None, None)
-            }
+            (None, Some(list), _) => (fleet::FleetSpec::Remote(fleet::parse_workers(list)?), None, None),
             (None, None, Some(n)) => {
                 let threads = self.threads.unwrap_or_else(rayon::current_num_threads);
                 (fleet::FleetSpec::Local { n, threads, token_file: self.token_file.clone() }, None, None)
@@ -145,7 +143,7 @@ impl FarmArgs {
             (None, None, None) => (fleet::FleetSpec::InProcess(self.threads), None, None),
         };
         let token_file = self.token_file.clone().or(hosts_token);
-        let token = token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
+        let token = token_file.as_deref().map(photon_proto::read_token).transpose()?;
         let tls_ca = match self.tls_ca.clone().or(hosts_ca) {
             Some(p) => Some(std::fs::read(&p).with_context(|| format!("reading the TLS authority {}", p.display()))?),
             None => None,
@@ -222,25 +220,46 @@ pub(crate) struct SweepArgs {
     pub(crate) farm: FarmArgs,
 }
 
+/// Why a value of `--region` or `--size` is not one.
+#[derive(Debug, thiserror::Error)]
+pub enum ValueError {
+    /// Not four non-negative integers.
+    #[error("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{0}`")]
+    RegionNumbers(String),
+    /// An empty region.
+    #[error("expected X0 < X1 and Y0 < Y1 (X1 and Y1 exclusive), found `{0}`")]
+    RegionOrder(String),
+    /// Not four numbers.
+    #[error("expected four numbers X0,Y0,X1,Y1, found `{0}`")]
+    RegionCount(String),
+    /// Not `WIDTHxHEIGHT`.
+    #[error("expected WIDTHxHEIGHT, found `{0}`")]
+    SizeForm(String),
+    /// A size of 0 or above 65536.
+    #[error("expected WIDTHxHEIGHT with sizes in 1..=65536, found `{0}`")]
+    SizeRange(String),
+}
+
 /// A region `X0,Y0,X1,Y1` of `--region`.
-pub fn parse_region(s: &str) -> Result<Region, String> {
-    let v: Vec<u32> =
-        s.split(',').map(|p| p.trim().parse::<u32>()).collect::<Result<_, _>>().map_err(|_| {
-            format!("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{s}`")
-        })?;
+pub fn parse_region(s: &str) -> Result<Region, ValueError> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| ValueError::RegionNumbers(s.to_owned()))?;
     match v[..] {
         [x0, y0, x1, y1] if x0 < x1 && y0 < y1 => Ok(Region { x0, y0, x1, y1 }),
-        [_, _, _, _] => Err(format!("expected X0 < X1 and Y0 < Y1 (X1 and Y1 exclusive), found `{s}`")),
-        _ => Err(format!("expected four numbers X0,Y0,X1,Y1, found `{s}`")),
+        [_, _, _, _] => Err(ValueError::RegionOrder(s.to_owned())),
+        _ => Err(ValueError::RegionCount(s.to_owned())),
     }
 }
 
 /// A size `WIDTHxHEIGHT` of `--size`.
-pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
-    let (w, h) = s.split_once('x').ok_or_else(|| format!("expected WIDTHxHEIGHT, found `{s}`"))?;
+pub fn parse_size(s: &str) -> Result<(u32, u32), ValueError> {
+    let (w, h) = s.split_once('x').ok_or_else(|| ValueError::SizeForm(s.to_owned()))?;
     let p = |v: &str| v.parse::<u32>().ok().filter(|&n| (1..=65_536).contains(&n));
     match (p(w), p(h)) {
         (Some(w), Some(h)) => Ok((w, h)),
-        _ => Err(format!("expected WIDTHxHEIGHT with sizes in 1..=65536, found `{s}`")),
+        _ => Err(ValueError::SizeRange(s.to_owned())),
     }
 }

@@ -45,7 +45,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let scene = render_scene(&args)?;
     let resume = args.resume.as_deref().map(Partial::read).transpose()?;
     let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
-        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20).map_err(anyhow::Error::msg)?),
+        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
         _ => None,
     };
     let (job, hits) = prepare_job(&scene, &args.scene, cache.as_ref())?;
@@ -63,7 +63,7 @@ fn render(args: RenderArgs) -> Result<()> {
         progress: !args.quiet,
     };
     let (outcome, in_process) = runtime()?.block_on(async {
-        let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let fleet = fleet::Fleet::start(&spec).await?;
         let outcome = farm::render(&job, &fleet.addrs, options).await;
         let in_process = fleet.is_in_process();
         fleet.stop().await;
@@ -200,7 +200,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t = runtime()?.block_on(async {
-        let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let fleet = fleet::Fleet::start(&spec).await?;
         let options = farm::Options { token, tls_ca, ..farm::Options::default() };
         let t = sweep::render_timed(&scene, &args.scene, &fleet.addrs, options).await;
         fleet.stop().await;
@@ -243,7 +243,7 @@ fn sweep(args: SweepArgs) -> Result<()> {
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let rows = runtime()?.block_on(async {
         // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
-        let fleet = fleet::Fleet::start(&spec).await.map_err(anyhow::Error::msg)?;
+        let fleet = fleet::Fleet::start(&spec).await?;
         let names: Vec<&str> = fleet.addrs.iter().map(|a| a.name.as_str()).collect();
         println!(
             "sweep of {} at {width}x{height} against {}: on {} ({} threads here)",

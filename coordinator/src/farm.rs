@@ -18,7 +18,7 @@ use crate::report::{Warning, WorkerReport, progress_bar};
 use crate::scheduler::{
     Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
 };
-use crate::session::{self, Client, Ready, StripError, WorkerAddr, fetch_strip};
+use crate::session::{self, Client, Ready, SessionError, StripError, WorkerAddr, fetch_strip};
 use photon_proto::pb;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -145,7 +145,7 @@ fn start_sessions(
 /// What the tasks tell the loop.
 enum Event {
     Ready { worker: WorkerId, ready: Box<Ready> },
-    Refused { worker: WorkerId, reason: String },
+    Refused { worker: WorkerId, reason: SessionError },
     Progress { worker: WorkerId, rows: u32 },
     Strip { worker: WorkerId, strip: StripId, attempt: u32, result: Result<(Vec<f32>, u64), StripError> },
 }
@@ -285,7 +285,7 @@ impl<'a> Farm<'a> {
     fn on_event(&mut self, event: Event, now: Duration) {
         match event {
             Event::Ready { worker, ready } => self.on_ready(worker, *ready),
-            Event::Refused { worker, reason } => self.on_refused(worker, reason),
+            Event::Refused { worker, reason } => self.on_refused(worker, reason.to_string()),
             Event::Progress { worker, rows } => self.members[worker.0 as usize].rows_live = u64::from(rows),
             Event::Strip { worker, strip, attempt, result } => self.on_strip(worker, strip, attempt, result, now),
         }
@@ -335,8 +335,9 @@ impl<'a> Farm<'a> {
         self.members[worker.0 as usize].rows_live = 0;
         match result {
             Ok((pixels, rays)) => self.on_pixels(worker, strip, attempt, &pixels, rays, now),
-            Err(StripError::Lost(reason)) => self.on_lost(worker, reason, now),
-            Err(StripError::Failed(failure)) => {
+            Err(e) if e.lost() => self.on_lost(worker, e.to_string(), now),
+            Err(e) => {
+                let failure = e.failure();
                 tracing::warn!("{}: {strip}: {failure}", self.members[worker.0 as usize].addr.name);
                 self.on_failure(worker, strip, failure, now);
             }

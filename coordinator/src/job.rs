@@ -2,13 +2,65 @@
 //! built by [`prepare_job`], through the prepared-blob cache when there is one), and the strips finished so far
 //! ([`Partial`]), kept in a partial file beside the output for `--resume`.
 
+use crate::prepared_cache::PreparedCacheError;
 use crate::prepared_cache::{self, PreparedCache};
-use anyhow::{Context, Result};
+use photon_core::codec::CodecError;
 use photon_core::prepare::Prepared;
-use photon_core::scene::Scene;
+use photon_core::scene::{Scene, SceneError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// Why a job cannot be prepared, or a partial file read or written. The messages without a cause in them are
+/// context: the cause is the error's source, so `{:#}` prints both.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// The scene cannot be prepared (meshes, photon maps).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// The cache keys cannot be computed.
+    #[error(transparent)]
+    Cache(#[from] PreparedCacheError),
+    /// A blob cannot be encoded.
+    #[error("encoding the {0}")]
+    Encode(&'static str, #[source] CodecError),
+    /// The cached scene blob does not decode.
+    #[error("decoding the cached scene in {}", dir.display())]
+    DecodeCached {
+        /// The cache's folder.
+        dir: PathBuf,
+        /// The decoder's error.
+        #[source]
+        cause: CodecError,
+    },
+    /// The partial file cannot be read.
+    #[error("reading the partial file {}", path.display())]
+    ReadPartial {
+        /// The file.
+        path: PathBuf,
+        /// The reason.
+        #[source]
+        cause: std::io::Error,
+    },
+    /// The file is not a partial render.
+    #[error("{} is not a partial render", path.display())]
+    NotPartial {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        #[source]
+        cause: CodecError,
+    },
+    /// The partial file cannot be written.
+    #[error("writing {}", path.display())]
+    WritePartial {
+        /// The file.
+        path: PathBuf,
+        /// The reason.
+        #[source]
+        cause: std::io::Error,
+    },
+}
 
 /// A job: the blobs of a prepared scene and the frame to render.
 #[derive(Clone, Debug)]
@@ -90,18 +142,18 @@ pub fn prepare_job(
     scene: &Scene,
     scene_path: &Path,
     cache: Option<&PreparedCache>,
-) -> Result<(Job, Option<prepared_cache::Hits>)> {
+) -> Result<(Job, Option<prepared_cache::Hits>), JobError> {
     let camera = photon_core::camera::Camera::new(&scene.camera);
     let settings = scene.render.clone();
-    let frame = Prepared::encode_frame_of(&camera, &settings).context("encoding the frame")?;
+    let frame = Prepared::encode_frame_of(&camera, &settings).map_err(|e| JobError::Encode("frame", e))?;
     let (width, height) = (camera.width, camera.height);
     let Some(cache) = cache else {
         let prep = Prepared::new(scene, scene_path)?;
-        let scene_blob = prep.encode_scene().context("encoding the scene")?;
-        let photons = prep.encode_photons().context("encoding the photon maps")?;
+        let scene_blob = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
+        let photons = prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?;
         return Ok((Job::new(scene_blob, photons, frame, (width, height), &settings), None));
     };
-    let keys = PreparedCache::keys(scene).map_err(anyhow::Error::msg)?;
+    let keys = PreparedCache::keys(scene)?;
     let needs_photons = settings.integrator.needs_photon_maps();
     let cached_scene = cache.load(&keys.scene, "scene");
     let cached_photons = if needs_photons { cache.load(&keys.photons, "photons") } else { None };
@@ -111,7 +163,7 @@ pub fn prepare_job(
         Some(bytes) => (bytes, None),
         None => {
             let prep = Prepared::without_photons(scene, scene_path)?;
-            let bytes = prep.encode_scene().context("encoding the scene")?;
+            let bytes = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
             cache.store(&keys.scene, "scene", &bytes);
             (bytes, Some(prep))
         }
@@ -123,10 +175,10 @@ pub fn prepare_job(
             let prep = match prep {
                 Some(p) => p,
                 None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
-                    .with_context(|| format!("decoding the cached scene in {}", cache.dir().display()))?,
+                    .map_err(|cause| JobError::DecodeCached { dir: cache.dir().into(), cause })?,
             };
             let prep = Prepared { photons: prep.photon_maps_if_needed(scene_path)?, ..prep };
-            let bytes = prep.encode_photons().context("encoding the photon maps")?;
+            let bytes = prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?;
             if let Some(b) = &bytes {
                 cache.store(&keys.photons, "photons", b);
             }
@@ -145,15 +197,15 @@ pub fn partial_path(output: &Path) -> PathBuf {
 
 impl Partial {
     /// Reads a partial file left by an interrupted render.
-    pub fn read(path: &Path) -> Result<Self> {
-        let bytes = std::fs::read(path).with_context(|| format!("reading the partial file {}", path.display()))?;
+    pub fn read(path: &Path) -> Result<Self, JobError> {
+        let bytes = std::fs::read(path).map_err(|cause| JobError::ReadPartial { path: path.into(), cause })?;
         photon_core::codec::decode(&bytes, bytes.len())
-            .with_context(|| format!("{} is not a partial render", path.display()))
+            .map_err(|cause| JobError::NotPartial { path: path.into(), cause })
     }
 
     /// Writes the partial file.
-    pub fn write(&self, path: &Path) -> Result<()> {
-        let bytes = photon_core::codec::encode(self).context("encoding the partial render")?;
-        std::fs::write(path, bytes).with_context(|| format!("writing {}", path.display()))
+    pub fn write(&self, path: &Path) -> Result<(), JobError> {
+        let bytes = photon_core::codec::encode(self).map_err(|e| JobError::Encode("partial render", e))?;
+        std::fs::write(path, bytes).map_err(|cause| JobError::WritePartial { path: path.into(), cause })
     }
 }

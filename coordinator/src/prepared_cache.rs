@@ -12,6 +12,7 @@
 //! payload before the payload, and a file that does not match is deleted and rebuilt. Files are written under a
 //! temporary name and renamed, and the folder is trimmed to its cap, oldest first.
 
+use photon_core::codec::CodecError;
 use photon_core::scene::{Object, Scene};
 use std::path::{Path, PathBuf};
 
@@ -22,6 +23,27 @@ pub struct Hits {
     pub scene: bool,
     /// The photons blob came from the cache.
     pub photons: bool,
+}
+
+/// Why the cache cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum PreparedCacheError {
+    /// Its folder cannot be created.
+    #[error("cannot create the cache folder {}: {cause}", dir.display())]
+    CreateDir {
+        /// The folder.
+        dir: PathBuf,
+        /// The reason.
+        cause: std::io::Error,
+    },
+    /// A part of the scene cannot be encoded for hashing.
+    #[error("hashing the scene's {what}: {cause}")]
+    Hash {
+        /// Which part.
+        what: &'static str,
+        /// The encoder's error.
+        cause: CodecError,
+    },
 }
 
 /// A folder of prepared blobs.
@@ -40,8 +62,8 @@ pub struct Keys {
 
 impl PreparedCache {
     /// The cache in `dir`, created if missing, trimmed to `cap` bytes.
-    pub fn open(dir: PathBuf, cap: u64) -> Result<Self, String> {
-        std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create the cache folder {}: {e}", dir.display()))?;
+    pub fn open(dir: PathBuf, cap: u64) -> Result<Self, PreparedCacheError> {
+        std::fs::create_dir_all(&dir).map_err(|cause| PreparedCacheError::CreateDir { dir: dir.clone(), cause })?;
         Ok(Self { dir, cap })
     }
 
@@ -54,9 +76,9 @@ impl PreparedCache {
     }
 
     /// The keys of `scene`, reading every file it references.
-    pub fn keys(scene: &Scene) -> Result<Keys, String> {
-        let enc = |what: &str, r: Result<Vec<u8>, photon_core::codec::CodecError>| {
-            r.map_err(|e| format!("hashing the scene's {what}: {e}"))
+    pub fn keys(scene: &Scene) -> Result<Keys, PreparedCacheError> {
+        let enc = |what: &'static str, r: Result<Vec<u8>, CodecError>| {
+            r.map_err(|cause| PreparedCacheError::Hash { what, cause })
         };
         let mut h = photon_proto::Hasher::new();
         h.update(photon_proto::BUILD_ID.as_bytes());

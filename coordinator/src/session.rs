@@ -45,6 +45,76 @@ impl tonic::service::Interceptor for Auth {
     }
 }
 
+/// Why a session with a worker failed: it is refused for this render. Each message is the one the user reads.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The token cannot travel in an HTTP/2 header.
+    #[error("the token must be printable ASCII")]
+    BadToken,
+    /// The address is not a URI.
+    #[error("bad worker address {uri}: {cause}")]
+    BadAddress {
+        /// The worker's URI.
+        uri: String,
+        /// The reason.
+        cause: tonic::transport::Error,
+    },
+    /// No connection within the patience.
+    #[error("cannot connect to {uri}: {chain}{hint}")]
+    Connect {
+        /// The worker's URI.
+        uri: String,
+        /// The connection error with its sources, on one line.
+        chain: String,
+        /// A hint when TLS is the likely cause, else empty.
+        hint: &'static str,
+    },
+    /// The worker accepted the connection and said nothing.
+    #[error("no answer to hello within {} s", ANSWER_TIMEOUT.as_secs())]
+    HelloTimeout,
+    /// The worker refused the hello (another protocol or build, a wrong token, or not gRPC at all).
+    #[error("refused: {status}{hint}")]
+    Refused {
+        /// The status, on one line.
+        status: String,
+        /// A hint when TLS is the likely cause, else empty.
+        hint: &'static str,
+    },
+    /// The worker did not list its missing blobs in time.
+    #[error("no answer to the blob list within {} s", ANSWER_TIMEOUT.as_secs())]
+    BlobListTimeout,
+    /// The worker failed to list its missing blobs.
+    #[error("listing blobs: {0}")]
+    BlobList(String),
+    /// The worker asked for a blob that is not part of the job.
+    #[error("asked for blob {0}, which this job does not have")]
+    UnknownBlob(String),
+    /// A blob is larger than the worker accepts.
+    #[error("blob of {} MiB exceeds the worker's limit of {} MiB", .size >> 20, .limit >> 20)]
+    BlobTooLarge {
+        /// The blob's bytes.
+        size: u64,
+        /// The worker's limit in bytes.
+        limit: u64,
+    },
+    /// An upload took longer than its allowance.
+    #[error("shipping blob {id} took longer than {} s", .limit.as_secs())]
+    ShipTimeout {
+        /// The blob.
+        id: String,
+        /// The allowance.
+        limit: Duration,
+    },
+    /// An upload failed.
+    #[error("shipping blob {id}: {status}")]
+    Ship {
+        /// The blob.
+        id: String,
+        /// The status, on one line.
+        status: String,
+    },
+}
+
 /// A client of one worker.
 pub type Client = RenderClient<InterceptedService<Channel, Auth>>;
 
@@ -56,12 +126,9 @@ pub async fn connect(
     token: Option<&str>,
     tls_ca: Option<&[u8]>,
     patience: Duration,
-) -> Result<Client, String> {
+) -> Result<Client, SessionError> {
     let auth = match token {
-        Some(t) => Some(
-            MetadataValue::try_from(photon_proto::bearer(t))
-                .map_err(|_| "the token must be printable ASCII".to_owned())?,
-        ),
+        Some(t) => Some(MetadataValue::try_from(photon_proto::bearer(t)).map_err(|_| SessionError::BadToken)?),
         None => None,
     };
     let uri = if tls_ca.is_some() { uri.replacen("http://", "https://", 1) } else { uri.to_owned() };
@@ -69,7 +136,7 @@ pub async fn connect(
         Some(ca) => photon_proto::transport::tls_endpoint(&uri, ca),
         None => photon_proto::transport::endpoint(&uri),
     }
-    .map_err(|e| format!("bad worker address {uri}: {e}"))?;
+    .map_err(|cause| SessionError::BadAddress { uri: uri.clone(), cause })?;
     let start = Instant::now();
     let channel = loop {
         match endpoint.connect().await {
@@ -86,7 +153,7 @@ pub async fn connect(
                 } else {
                     ""
                 };
-                return Err(format!("cannot connect to {uri}: {chain}{hint}"));
+                return Err(SessionError::Connect { uri, chain, hint });
             }
         }
     };
@@ -130,7 +197,12 @@ pub struct Ready {
 }
 
 /// Connects to the worker at `addr`, says hello and ships the blobs it lacks.
-pub async fn open(addr: &WorkerAddr, token: Option<&str>, tls_ca: Option<&[u8]>, job: &Job) -> Result<Ready, String> {
+pub async fn open(
+    addr: &WorkerAddr,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    job: &Job,
+) -> Result<Ready, SessionError> {
     let started = Instant::now();
     let mut client = connect(&addr.uri, token, tls_ca, Duration::from_secs(3)).await?;
     let (hello, shipped) = introduce(&mut client, job).await?;
@@ -138,17 +210,16 @@ pub async fn open(addr: &WorkerAddr, token: Option<&str>, tls_ca: Option<&[u8]>,
 }
 
 /// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
-pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), String> {
+pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), SessionError> {
     let request = pb::HelloRequest {
         protocol_version: photon_proto::PROTOCOL_VERSION,
         build_id: photon_proto::BUILD_ID.to_owned(),
         crate_version: photon_proto::CRATE_VERSION.to_owned(),
     };
     // A peer that accepts the connection and never answers must not hang the render.
-    let silent = || format!("no answer to hello within {} s", ANSWER_TIMEOUT.as_secs());
     let hello = tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))
         .await
-        .map_err(|_| silent())?
+        .map_err(|_| SessionError::HelloTimeout)?
         .map_err(|s| {
             // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer.
             let hint = match s.code() {
@@ -157,27 +228,23 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
                 }
                 _ => "",
             };
-            format!("refused: {}{hint}", status_line(&s))
+            SessionError::Refused { status: status_line(&s), hint }
         })?
         .into_inner();
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
     let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
         .await
-        .map_err(|_| format!("no answer to the blob list within {} s", ANSWER_TIMEOUT.as_secs()))?
-        .map_err(|s| format!("listing blobs: {}", status_line(&s)))?
+        .map_err(|_| SessionError::BlobListTimeout)?
+        .map_err(|s| SessionError::BlobList(status_line(&s)))?
         .into_inner()
         .missing;
     let mut shipped = 0;
     for id in missing {
         let Some(blob) = job.blobs.get(&id) else {
-            return Err(format!("asked for blob {id}, which this job does not have"));
+            return Err(SessionError::UnknownBlob(id));
         };
         if blob.len() as u64 > hello.max_blob_bytes {
-            return Err(format!(
-                "blob of {} MiB exceeds the worker's limit of {} MiB",
-                blob.len() >> 20,
-                hello.max_blob_bytes >> 20
-            ));
+            return Err(SessionError::BlobTooLarge { size: blob.len() as u64, limit: hello.max_blob_bytes });
         }
         shipped += put_blob(client, &id, blob.clone()).await?;
     }
@@ -186,13 +253,13 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
 
 /// Uploads one blob in chunks of at most [`photon_proto::MAX_CHUNK`] bytes, copied one at a time as the stream
 /// is sent. Allowed [`ANSWER_TIMEOUT`] plus a second per MiB (1 MiB/s is a very slow link).
-pub async fn put_blob(client: &mut Client, id: &str, blob: Arc<Vec<u8>>) -> Result<u64, String> {
+pub async fn put_blob(client: &mut Client, id: &str, blob: Arc<Vec<u8>>) -> Result<u64, SessionError> {
     let header = pb::BlobHeader { id: id.to_owned(), size: blob.len() as u64 };
     let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
     let reply = tokio::time::timeout(limit, client.put_blob(tokio_stream::iter(chunk_messages(header, blob))))
         .await
-        .map_err(|_| format!("shipping blob {id} took longer than {} s", limit.as_secs()))?
-        .map_err(|s| format!("shipping blob {id}: {}", status_line(&s)))?;
+        .map_err(|_| SessionError::ShipTimeout { id: id.to_owned(), limit })?
+        .map_err(|s| SessionError::Ship { id: id.to_owned(), status: status_line(&s) })?;
     Ok(reply.into_inner().stored)
 }
 
@@ -210,27 +277,110 @@ pub fn chunk_messages(header: pb::BlobHeader, blob: Arc<Vec<u8>>) -> impl Iterat
     })
 }
 
-/// What a strip task reports.
+/// Why a strip call brought back no valid strip. Each message is the one the log and the worker table show.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
 pub enum StripError {
-    /// The worker cannot be reached: it is lost.
-    Lost(String),
-    /// The worker answered, and the answer was a failure.
-    Failed(StripFailure),
+    /// The call ended with a status.
+    #[error("{line}")]
+    Status {
+        /// Its code, which decides what the failure means.
+        code: Code,
+        /// The status, on one line.
+        line: String,
+    },
+    /// The stream ended without a summary.
+    #[error("the strip's stream ended before its summary")]
+    StreamEnded,
+    /// Pixel rows came out of order or not as whole rows.
+    #[error("pixel rows out of order: got {bytes} bytes from row {first_row}, expected whole rows from row {next_row}")]
+    RowsOutOfOrder {
+        /// Bytes in the message.
+        bytes: usize,
+        /// The row they claimed to start at.
+        first_row: u32,
+        /// The row expected next.
+        next_row: u32,
+    },
+    /// More pixels than the strip holds.
+    #[error("more pixels than rows {row_start}..{row_end} hold")]
+    TooManyPixels {
+        /// The strip's first row.
+        row_start: u32,
+        /// The row after its last.
+        row_end: u32,
+    },
+    /// The summary came before all pixels.
+    #[error("{got} of {expected} pixel bytes before the summary")]
+    ShortStrip {
+        /// Bytes received.
+        got: usize,
+        /// Bytes the strip holds.
+        expected: usize,
+    },
+    /// The pixels do not hash to the worker's checksum.
+    #[error("checksum mismatch: the pixels changed after the worker hashed them")]
+    ChecksumMismatch,
+    /// A value that no radiance can have (negative or not finite).
+    #[error("pixel ({x}, {y}) holds {value}: not a radiance")]
+    NotRadiance {
+        /// Column.
+        x: u32,
+        /// Row.
+        y: u32,
+        /// The value.
+        value: f32,
+    },
+    /// A message with no event.
+    #[error("an empty event")]
+    EmptyEvent,
 }
 
-/// Classifies a status returned by a strip call.
-fn classify(s: &tonic::Status) -> StripError {
-    let line = status_line(s);
-    match s.code() {
-        // The connection is gone (or never came back): the worker is lost.
-        Code::Unavailable | Code::Unknown | Code::Aborted => StripError::Lost(line),
-        // The job itself cannot render: another worker would fail the same way.
-        Code::InvalidArgument | Code::OutOfRange => StripError::Failed(StripFailure::fatal(line)),
-        // Busy, or cancelled: try again elsewhere, not the worker's fault.
-        Code::ResourceExhausted | Code::Cancelled | Code::DeadlineExceeded => {
-            StripError::Failed(StripFailure::transient(line))
+impl StripError {
+    /// The worker cannot be reached (the connection is gone, or never came back): it is lost, and its strips go
+    /// to the others; the failure is not reported against the strip.
+    pub fn lost(&self) -> bool {
+        match self {
+            Self::Status { code, .. } => matches!(code, Code::Unavailable | Code::Unknown | Code::Aborted),
+            Self::StreamEnded => true,
+            _ => false,
         }
-        _ => StripError::Failed(StripFailure::counted(line)),
+    }
+
+    /// Another attempt could succeed; `false` when the job itself cannot render (another worker would fail the
+    /// same way).
+    pub fn retryable(&self) -> bool {
+        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. })
+    }
+
+    /// The failure counts against the worker: it misbehaved, rather than being busy or cancelled, or the job
+    /// being broken.
+    pub fn counted(&self) -> bool {
+        match self {
+            Self::Status { code, .. } => !matches!(
+                code,
+                Code::Unavailable
+                    | Code::Unknown
+                    | Code::Aborted
+                    | Code::InvalidArgument
+                    | Code::OutOfRange
+                    | Code::ResourceExhausted
+                    | Code::Cancelled
+                    | Code::DeadlineExceeded
+            ),
+            Self::StreamEnded => false,
+            _ => true,
+        }
+    }
+
+    /// The failure as the scheduler takes it.
+    pub fn failure(&self) -> StripFailure {
+        StripFailure { retryable: self.retryable(), counted: self.counted(), reason: self.to_string() }
+    }
+}
+
+impl From<tonic::Status> for StripError {
+    fn from(s: tonic::Status) -> Self {
+        Self::Status { code: s.code(), line: status_line(&s) }
     }
 }
 
@@ -242,48 +392,78 @@ pub async fn fetch_strip(
     progress: impl Fn(u32),
 ) -> Result<(Vec<f32>, u64), StripError> {
     let (row_start, row_end) = (request.row_start, request.row_end);
-    let mut stream = client.render_strip(request).await.map_err(|s| classify(&s))?.into_inner();
+    let mut stream = client.render_strip(request).await?.into_inner();
     let row_bytes = 12 * width as usize;
     let expected = row_bytes * (row_end - row_start) as usize;
     let mut bytes: Vec<u8> = Vec::with_capacity(expected);
-    let bad = |why: String| StripError::Failed(StripFailure::counted(why));
     loop {
         let event = match stream.message().await {
             Ok(Some(e)) => e,
-            Ok(None) => return Err(StripError::Lost("the strip's stream ended before its summary".into())),
-            Err(s) => return Err(classify(&s)),
+            Ok(None) => return Err(StripError::StreamEnded),
+            Err(s) => return Err(s.into()),
         };
         match event.event {
             Some(WireEvent::RowsDone(n)) => progress(n),
             Some(WireEvent::Rows(rows)) => {
                 let next_row = row_start + (bytes.len() / row_bytes.max(1)) as u32;
                 if rows.first_row != next_row || rows.data.len() % row_bytes.max(1) != 0 {
-                    return Err(bad(format!(
-                        "pixel rows out of order: got {} bytes from row {}, expected whole rows from row {next_row}",
-                        rows.data.len(),
-                        rows.first_row
-                    )));
+                    return Err(StripError::RowsOutOfOrder {
+                        bytes: rows.data.len(),
+                        first_row: rows.first_row,
+                        next_row,
+                    });
                 }
                 if bytes.len() + rows.data.len() > expected {
-                    return Err(bad(format!("more pixels than rows {row_start}..{row_end} hold")));
+                    return Err(StripError::TooManyPixels { row_start, row_end });
                 }
                 bytes.extend_from_slice(&rows.data);
             }
             Some(WireEvent::Done(summary)) => {
                 if bytes.len() != expected {
-                    return Err(bad(format!("{} of {expected} pixel bytes before the summary", bytes.len())));
+                    return Err(StripError::ShortStrip { got: bytes.len(), expected });
                 }
                 if summary.checksum != photon_proto::checksum(&bytes) {
-                    return Err(bad("checksum mismatch: the pixels changed after the worker hashed them".into()));
+                    return Err(StripError::ChecksumMismatch);
                 }
                 let pixels = photon_proto::bytes_to_pixels(&bytes).unwrap_or_default();
                 if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
                     let (x, y) = ((i / 3) as u32 % width.max(1), row_start + (i / 3) as u32 / width.max(1));
-                    return Err(bad(format!("pixel ({x}, {y}) holds {}: not a radiance", pixels[i])));
+                    return Err(StripError::NotRadiance { x, y, value: pixels[i] });
                 }
                 return Ok((pixels, summary.rays));
             }
-            None => return Err(bad("an empty event".into())),
+            None => return Err(StripError::EmptyEvent),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strip_errors_keep_the_flags_of_their_kind() {
+        let status = |code| StripError::from(tonic::Status::new(code, "why"));
+        // (lost, retryable, counted)
+        let cases = [
+            (Code::Unavailable, (true, true, false)),
+            (Code::Aborted, (true, true, false)),
+            (Code::InvalidArgument, (false, false, false)),
+            (Code::OutOfRange, (false, false, false)),
+            (Code::ResourceExhausted, (false, true, false)),
+            (Code::Cancelled, (false, true, false)),
+            (Code::DeadlineExceeded, (false, true, false)),
+            (Code::Internal, (false, true, true)),
+            (Code::NotFound, (false, true, true)),
+        ];
+        for (code, flags) in cases {
+            let e = status(code);
+            assert_eq!((e.lost(), e.retryable(), e.counted()), flags, "{code:?}");
+        }
+        assert_eq!(status(Code::Internal).to_string(), "why (Internal)");
+        assert!(StripError::StreamEnded.lost());
+        let bad = StripError::NotRadiance { x: 1, y: 2, value: -0.5 };
+        assert_eq!(bad.failure(), StripFailure::counted("pixel (1, 2) holds -0.5: not a radiance"));
+        assert!(StripError::ChecksumMismatch.failure().counted);
     }
 }

@@ -27,13 +27,25 @@ struct Disk {
     cap: u64,
 }
 
+/// Why a cache cannot be opened.
+#[derive(Debug, thiserror::Error)]
+pub enum CacheError {
+    /// Its folder cannot be created.
+    #[error("cannot create the cache folder {}: {cause}", dir.display())]
+    CreateDir {
+        /// The folder.
+        dir: PathBuf,
+        /// The reason.
+        cause: std::io::Error,
+    },
+}
+
 impl BlobCache {
     /// A cache of `memory_budget` bytes in memory and, when given, a folder capped at the given bytes.
-    pub fn new(memory_budget: u64, disk: Option<(PathBuf, u64)>) -> Result<Self, String> {
+    pub fn new(memory_budget: u64, disk: Option<(PathBuf, u64)>) -> Result<Self, CacheError> {
         let disk = match disk {
             Some((dir, cap)) => {
-                std::fs::create_dir_all(&dir)
-                    .map_err(|e| format!("cannot create the cache folder {}: {e}", dir.display()))?;
+                std::fs::create_dir_all(&dir).map_err(|cause| CacheError::CreateDir { dir: dir.clone(), cause })?;
                 Some(Disk { dir, cap })
             }
             None => None,
