@@ -2,6 +2,7 @@
 //! and regions. [`crate::commands`] runs them.
 
 use crate::fleet;
+use crate::overrides::Setting;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
 use photon_core::metrics::Region;
@@ -84,6 +85,28 @@ pub(crate) struct RenderArgs {
     /// Neither read nor write the prepared-blob cache.
     #[arg(long, conflicts_with = "cache_dir")]
     pub(crate) no_cache: bool,
+}
+
+impl RenderArgs {
+    /// The settings the flags override, checked as `--set` would not (a count of 0 names the flag).
+    pub(crate) fn settings(&self) -> Result<Vec<Setting>> {
+        let at_least_1 = |flag: &str, v: Option<u32>| match v {
+            Some(0) => bail!("--{flag} must be at least 1"),
+            _ => Ok(v),
+        };
+        let (spp, photons) = (at_least_1("spp", self.spp)?, at_least_1("photons", self.photons)?);
+        let passes = at_least_1("passes", self.passes)?;
+        let settings = [
+            self.size.map(|(w, h)| Setting::Size(w, h)),
+            spp.map(Setting::Spp),
+            self.integrator.map(Setting::Integrator),
+            self.seed.map(Setting::Seed),
+            self.exposure.map(Setting::Exposure),
+            photons.map(Setting::Photons),
+            passes.map(Setting::Passes),
+        ];
+        Ok(settings.into_iter().flatten().collect())
+    }
 }
 
 /// Where to render: with none of `--hosts`, `--workers` or `--local`, on a worker inside this process.

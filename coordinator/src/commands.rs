@@ -5,6 +5,7 @@ use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved,
 use crate::farm::{self, FarmError};
 use crate::fleet;
 use crate::job::{Partial, partial_path, prepare_job};
+use crate::overrides::{self, Setting};
 use crate::prepared_cache::PreparedCache;
 use crate::report::{Summary, print_workers};
 use crate::sweep::{self, sig};
@@ -91,44 +92,9 @@ fn render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The scene of `render`: the file, its `--set` pairs, then the flags that override settings.
+/// The scene of `render`: the file, its `--set` pairs, then the flags that override settings as more pairs.
 fn render_scene(args: &RenderArgs) -> Result<Scene> {
-    let mut scene = Scene::load_with(&args.scene, &args.set)?;
-    if let Some((w, h)) = args.size {
-        scene.camera.width = w;
-        scene.camera.height = h;
-    }
-    let s = &mut scene.render;
-    if let Some(spp) = args.spp {
-        if spp == 0 {
-            bail!("--spp must be at least 1");
-        }
-        s.spp = spp;
-    }
-    if let Some(i) = args.integrator {
-        s.integrator = i;
-    }
-    if let Some(seed) = args.seed {
-        s.seed = seed;
-    }
-    if let Some(e) = args.exposure {
-        s.exposure = e;
-    }
-    if let Some(n) = args.photons {
-        if n == 0 {
-            bail!("--photons must be at least 1");
-        }
-        s.photons.global = n;
-        s.photons.caustic = n;
-        s.photons.pass_photons = n;
-    }
-    if let Some(p) = args.passes {
-        if p == 0 {
-            bail!("--passes must be at least 1");
-        }
-        s.photons.passes = p;
-    }
-    Ok(scene)
+    Ok(Scene::load_with(&args.scene, &overrides::pairs(&args.set, &args.settings()?))?)
 }
 
 /// Keeps the finished strips of a failed render in the partial file beside the output, and says how to resume.
@@ -174,28 +140,22 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     if args.spp == 0 || args.passes == 0 {
         bail!("--spp and --passes must be at least 1");
     }
-    let mut scene = Scene::load_with(&args.scene, &args.set)?;
-    if let Some((w, h)) = args.size {
-        scene.camera.width = w;
-        scene.camera.height = h;
-    }
+    let size: Vec<Setting> = args.size.map(|(w, h)| Setting::Size(w, h)).into_iter().collect();
+    let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &size))?;
     if args.seed == scene.render.seed {
         eprintln!("warning: the reference seed equals the scene's render.seed: its noise will correlate with renders");
     }
     // Decide on the scene as it stands (lights and materials do not depend on the method).
     let choice = sweep::choose_reference(&Prepared::new(&scene, &args.scene)?);
-    let s = &mut scene.render;
-    s.integrator = choice.integrator;
-    s.seed = args.seed;
     let budget = match choice.integrator {
-        Integrator::Progressive => {
-            s.photons.passes = args.passes;
-            format!("{} passes of {} photon paths", args.passes, s.photons.pass_photons)
-        }
-        _ => {
-            s.spp = args.spp;
-            format!("{} spp", args.spp)
-        }
+        Integrator::Progressive => Setting::Passes(args.passes),
+        _ => Setting::Spp(args.spp),
+    };
+    let settings = [size.as_slice(), &[Setting::Integrator(choice.integrator), Setting::Seed(args.seed), budget]];
+    let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
+    let budget = match budget {
+        Setting::Passes(n) => format!("{n} passes of {} photon paths", scene.render.photons.pass_photons),
+        _ => format!("{} spp", args.spp),
     };
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
@@ -237,9 +197,9 @@ fn sweep(args: SweepArgs) -> Result<()> {
         );
     }
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let mut base = Scene::load_with(&args.scene, &args.set)?;
-    base.camera.width = width;
-    base.camera.height = height;
+    let base = overrides::pairs(&args.set, &[Setting::Size(width, height)]);
+    // Load once before starting workers, so that a broken scene fails at once.
+    Scene::load_with(&args.scene, &base)?;
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let rows = runtime()?.block_on(async {
         // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
@@ -274,7 +234,7 @@ fn sweep(args: SweepArgs) -> Result<()> {
 /// Renders every (method, budget) of a sweep on the workers at `addrs` and measures it.
 async fn sweep_rows(
     args: &SweepArgs,
-    base: &Scene,
+    base: &[String],
     reference: &Image,
     addrs: &[crate::session::WorkerAddr],
     options: farm::Options,
@@ -282,8 +242,8 @@ async fn sweep_rows(
     let mut rows = Vec::new();
     for &method in &args.methods {
         for &b in &args.budget {
-            let mut scene = base.clone();
-            let setting = sweep::apply_budget(&mut scene.render, method, b)?;
+            let (settings, setting) = sweep::budget(method, b)?;
+            let scene = Scene::load_with(&args.scene, &overrides::pairs(base, &settings))?;
             let t = sweep::render_timed(&scene, &args.scene, addrs, options.clone())
                 .await
                 .with_context(|| format!("rendering {method} at budget {b}"))?;

@@ -10,7 +10,8 @@
 //! loopback, or a worker server inside this process (the default, so a render on one machine takes the same
 //! path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of an unchanged
 //! scene. [`report`] is what the user reads: warnings during the render, the worker table and the summary line.
-//! [`sweep`] charts error against time. [`cli`] holds the command line's arguments and [`commands`] runs them.
+//! [`sweep`] charts error against time. [`overrides`] turns the
+//! flags that override scene settings, and the sweep's budgets, into the `KEY=VALUE` pairs of `--set`. [`cli`] holds the command line's arguments and [`commands`] runs them.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -19,6 +20,7 @@ pub mod commands;
 pub mod farm;
 pub mod fleet;
 pub mod job;
+pub mod overrides;
 pub mod prepared_cache;
 pub mod report;
 pub mod scheduler;
