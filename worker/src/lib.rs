@@ -15,6 +15,7 @@
 #![warn(missing_docs)]
 
 pub mod cache;
+pub mod disk_store;
 
 use cache::BlobCache;
 use photon_core::prepare::Prepared;
@@ -121,7 +122,7 @@ pub enum WorkerError {
     Threads(rayon::ThreadPoolBuildError),
     /// The blob cache cannot be opened.
     #[error(transparent)]
-    Cache(#[from] cache::CacheError),
+    Cache(#[from] disk_store::DiskStoreError),
 }
 
 impl Worker {
