@@ -172,12 +172,18 @@ mod tests {
         f.set_modified(SystemTime::now() - Duration::from_secs(age_s)).unwrap();
     }
 
+    /// A content-addressed store in `dir` holding `payload`, and the payload's file name.
+    fn hashed_payload(dir: &Path) -> (DiskStore, String) {
+        let store = DiskStore::open(dir.to_path_buf(), 1 << 20, &["blob"], Integrity::NamedByHash).unwrap();
+        let name = format!("{}.blob", photon_proto::blob_id(b"payload"));
+        store.write(&name, b"payload").unwrap();
+        (store, name)
+    }
+
     #[test]
     fn stores_and_reads_back_with_either_check() {
         let dir = temp("round-trip");
-        let hashed = DiskStore::open(dir.clone(), 1 << 20, &["blob"], Integrity::NamedByHash).unwrap();
-        let name = format!("{}.blob", photon_proto::blob_id(b"payload"));
-        hashed.write(&name, b"payload").unwrap();
+        let (hashed, name) = hashed_payload(&dir);
         assert!(hashed.contains(&name));
         assert_eq!(hashed.read(&name).unwrap().unwrap(), b"payload");
         assert_eq!(std::fs::read(hashed.path(&name)).unwrap(), b"payload", "no header on a hash-named file");
@@ -192,9 +198,7 @@ mod tests {
     #[test]
     fn a_damaged_file_is_rejected_and_deleted() {
         let dir = temp("damage");
-        let hashed = DiskStore::open(dir.clone(), 1 << 20, &["blob"], Integrity::NamedByHash).unwrap();
-        let name = format!("{}.blob", photon_proto::blob_id(b"payload"));
-        hashed.write(&name, b"payload").unwrap();
+        let (hashed, name) = hashed_payload(&dir);
         std::fs::write(hashed.path(&name), b"not the payload").unwrap();
         assert!(matches!(hashed.read(&name), Err(DiskStoreError::Damaged { .. })));
         assert!(!hashed.contains(&name));
