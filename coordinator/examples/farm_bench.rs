@@ -11,9 +11,11 @@
 
 #![allow(clippy::expect_used)] // a benchmark: a failure should stop it loudly
 
-use photon_coordinator::farm::{self, Job, Options};
+use photon_coordinator::farm::{self, Options};
 use photon_coordinator::fleet::{InProcess, LocalWorkers};
+use photon_coordinator::job::Job;
 use photon_coordinator::scheduler::{Scheduler, WorkerId};
+use photon_coordinator::session;
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Integrator, Scene};
 use std::path::Path;
@@ -106,9 +108,9 @@ fn main() {
         for _ in 0..3 {
             let secs = rt.block_on(async {
                 let w = InProcess::start(Some(1)).await.expect("worker");
-                let mut c = farm::connect(&w.addr.uri, None, None, Duration::from_secs(3)).await.expect("connect");
+                let mut c = session::connect(&w.addr.uri, None, None, Duration::from_secs(3)).await.expect("connect");
                 let t = Instant::now();
-                let (_, shipped) = farm::introduce(&mut c, &job).await.expect("ship");
+                let (_, shipped) = session::introduce(&mut c, &job).await.expect("ship");
                 assert_eq!(shipped, bytes);
                 t.elapsed().as_secs_f64()
             });

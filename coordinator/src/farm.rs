@@ -1,105 +1,29 @@
-//! Rendering a prepared job on workers over gRPC: connect, check versions, ship blobs, schedule strips, validate
-//! and assemble them, survive workers that fail.
+//! Rendering a prepared job on workers over gRPC: schedule strips, validate and assemble them, survive workers
+//! that fail.
 //!
-//! One task per worker connects, says hello and ships the blobs the worker lacks; one task per strip in flight
-//! asks for it and checks what comes back. They report to a single loop that owns the [`Scheduler`] (a pure state
-//! machine) through a channel, so every decision is made in one place, in the order events arrive. The loop
-//! also wakes on a timer to withdraw strips past their deadline.
+//! One task per worker opens a [`session`](crate::session) (connect, hello, ship the blobs it lacks); one task per
+//! strip in flight asks for it and checks what comes back. They report to a single loop that owns the [`Farm`]
+//! state, with the [`Scheduler`] (a pure state machine) inside, through a channel, so every decision is made in
+//! one place, in the order events arrive. The loop also wakes on a timer to withdraw strips past their deadline.
+//! What the user should hear about during the render ([`Warning`]) is collected by the handlers and printed by
+//! the loop.
 //!
 //! A result is accepted only if it covers exactly the strip's rows in order, has the right number of floats,
 //! every value finite and non-negative, and hashes to the checksum the worker computed before sending. A copy
 //! that loses the race, or a worker's strips when it is declared lost or dropped, are cancelled by dropping
 //! their calls (the worker then stops rendering them).
 
-use crate::scheduler::{Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState};
-use photon_proto::pb::render_client::RenderClient;
-use photon_proto::pb::{self, strip_event::Event as WireEvent};
+use crate::job::{Job, Partial};
+use crate::report::{Warning, WorkerReport, progress_bar};
+use crate::scheduler::{
+    Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
+};
+use crate::session::{self, Client, Ready, SessionError, StripError, WorkerAddr, fetch_strip};
+use photon_proto::pb;
 use std::collections::BTreeMap;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tokio::sync::mpsc;
-use tokio::task::AbortHandle;
-use tonic::Code;
-use tonic::metadata::{AsciiMetadataValue, MetadataValue};
-use tonic::service::interceptor::InterceptedService;
-use tonic::transport::Channel;
-
-/// A job: the blobs of a prepared scene and the frame to render.
-#[derive(Clone, Debug)]
-pub struct Job {
-    /// Blob id of the scene (geometry, BVH, materials, lights).
-    pub scene_blob: String,
-    /// Blob id of the photon maps, if the method has any.
-    pub photons_blob: Option<String>,
-    /// Every blob by id, shared with the shipping tasks.
-    pub blobs: BTreeMap<String, Arc<Vec<u8>>>,
-    /// The encoded frame (camera and settings).
-    pub frame: Vec<u8>,
-    /// Image size in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// Whether the method is progressive photon mapping, whose strips each need every pass's photons: it gets
-    /// fewer, taller strips ([`crate::scheduler::rows_per_strip_progressive`]).
-    pub progressive: bool,
-}
-
-impl Job {
-    /// A job from the encoded parts of a prepared scene, rendered with `settings`.
-    pub fn new(
-        scene: Vec<u8>,
-        photons: Option<Vec<u8>>,
-        frame: Vec<u8>,
-        (width, height): (u32, u32),
-        settings: &photon_core::scene::RenderSettings,
-    ) -> Self {
-        let mut blobs = BTreeMap::new();
-        let scene_blob = photon_proto::blob_id(&scene);
-        blobs.insert(scene_blob.clone(), Arc::new(scene));
-        let photons_blob = photons.map(|p| {
-            let id = photon_proto::blob_id(&p);
-            blobs.insert(id.clone(), Arc::new(p));
-            id
-        });
-        let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
-        Self { scene_blob, photons_blob, blobs, frame, width, height, progressive }
-    }
-
-    /// A fingerprint of everything that decides the pixels: the blobs, the frame and the size. A partial file
-    /// is resumed only by the job with the same fingerprint.
-    pub fn fingerprint(&self) -> String {
-        let mut h = photon_proto::Hasher::new();
-        h.update(self.scene_blob.as_bytes());
-        h.update(self.photons_blob.as_deref().unwrap_or("").as_bytes());
-        h.update(&self.frame);
-        h.update(&self.width.to_le_bytes());
-        h.update(&self.height.to_le_bytes());
-        h.finalize().to_hex().to_string()
-    }
-
-    /// Bytes of all blobs.
-    pub fn blob_bytes(&self) -> u64 {
-        self.blobs.values().map(|b| b.len() as u64).sum()
-    }
-}
-
-/// Where a worker is.
-#[derive(Clone, Debug)]
-pub struct WorkerAddr {
-    /// A name for reports (the host list's, or the address).
-    pub name: String,
-    /// `http://host:port`.
-    pub uri: String,
-}
-
-impl WorkerAddr {
-    /// A worker at `address` (`host:port`, or a URI with a scheme), named `name` or after its address.
-    pub fn new(address: &str, name: Option<&str>) -> Self {
-        let address = address.trim();
-        let uri = if address.contains("://") { address.to_owned() } else { format!("http://{address}") };
-        Self { name: name.map_or_else(|| address.to_owned(), str::to_owned), uri }
-    }
-}
+use tokio::sync::mpsc::{self, UnboundedSender};
+use tokio::task::{AbortHandle, JoinHandle};
 
 /// How to render.
 #[derive(Clone, Debug, Default)]
@@ -117,50 +41,6 @@ pub struct Options {
     pub resume: Option<Partial>,
     /// Show a progress bar.
     pub progress: bool,
-}
-
-/// Strips finished so far: what an interrupted render leaves for `--resume`.
-#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
-pub struct Partial {
-    /// [`Job::fingerprint`] of the job.
-    pub fingerprint: String,
-    /// Image width.
-    pub width: u32,
-    /// Image height.
-    pub height: u32,
-    /// The strip height the render used (a resumed render cuts the image the same way).
-    pub rows_per_strip: u32,
-    /// Finished strips: (first row, pixels of whole rows).
-    pub strips: Vec<(u32, Vec<f32>)>,
-}
-
-/// One worker's line in the final report.
-#[derive(Clone, Debug)]
-pub struct WorkerReport {
-    /// Its name.
-    pub name: String,
-    /// Architecture and OS (`x86_64 linux`), empty if it never answered.
-    pub platform: String,
-    /// Render threads.
-    pub threads: u32,
-    /// Strips accepted from it.
-    pub strips: u32,
-    /// Seconds with a strip in flight.
-    pub busy_s: f64,
-    /// Megapixels accepted per busy second.
-    pub mpix_per_s: f64,
-    /// Blob bytes shipped to it.
-    pub shipped_bytes: u64,
-    /// Seconds spent shipping to it.
-    pub ship_s: f64,
-    /// Speculative copies it was given (tail duplicates of strips running elsewhere).
-    pub speculative: u32,
-    /// Its results dropped because another copy won.
-    pub duplicates: u32,
-    /// Failures it had, and why it stopped, if it did.
-    pub failures: u32,
-    /// `active`, or why it was refused, lost or dropped.
-    pub state: String,
 }
 
 /// A finished render.
@@ -218,248 +98,64 @@ impl FarmError {
     }
 }
 
-/// Adds the shared token to every call.
-#[derive(Clone)]
-pub struct Auth(Option<AsciiMetadataValue>);
-
-impl tonic::service::Interceptor for Auth {
-    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
-        if let Some(v) = &self.0 {
-            req.metadata_mut().insert(photon_proto::TOKEN_KEY, v.clone());
+/// Renders `job` on `workers`.
+pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Result<Outcome, FarmError> {
+    let mut farm = Farm::new(job, workers, &options)?;
+    let (tx, mut rx) = mpsc::unbounded_channel::<Event>();
+    let sessions = start_sessions(job, workers, &options, &tx);
+    let mut tick = tokio::time::interval(Duration::from_millis(250));
+    let result = loop {
+        if let Some(end) = farm.end() {
+            break end;
         }
-        Ok(req)
-    }
-}
-
-/// A client of one worker.
-pub type Client = RenderClient<InterceptedService<Channel, Auth>>;
-
-/// Connects to a worker, retrying refused connections for `patience` (a worker that was just started may not
-/// listen yet). With `tls_ca`, the connection is TLS and the worker's certificate must be signed by that
-/// authority and name the worker's host.
-pub async fn connect(
-    uri: &str,
-    token: Option<&str>,
-    tls_ca: Option<&[u8]>,
-    patience: Duration,
-) -> Result<Client, String> {
-    let auth = match token {
-        Some(t) => Some(
-            MetadataValue::try_from(photon_proto::bearer(t))
-                .map_err(|_| "the token must be printable ASCII".to_owned())?,
-        ),
-        None => None,
-    };
-    let uri = if tls_ca.is_some() { uri.replacen("http://", "https://", 1) } else { uri.to_owned() };
-    let endpoint = match tls_ca {
-        Some(ca) => photon_proto::transport::tls_endpoint(&uri, ca),
-        None => photon_proto::transport::endpoint(&uri),
-    }
-    .map_err(|e| format!("bad worker address {uri}: {e}"))?;
-    let start = Instant::now();
-    let channel = loop {
-        match endpoint.connect().await {
-            Ok(c) => break c,
-            Err(e) if start.elapsed() < patience => {
-                tracing::debug!(uri, "connect: {e}; retrying");
-                tokio::time::sleep(Duration::from_millis(100)).await;
-            }
-            Err(e) => {
-                let chain = error_chain(&e);
-                // A TLS client talking to a plaintext worker sees its handshake answered with HTTP/2 bytes.
-                let hint = if tls_ca.is_some() && !chain.contains("certificate") && !chain.contains("refused") {
-                    " (if the worker runs without --tls-cert, drop --tls-ca)"
-                } else {
-                    ""
-                };
-                return Err(format!("cannot connect to {uri}: {chain}{hint}"));
-            }
+        let now = farm.t0.elapsed();
+        tokio::select! {
+            Some(event) = rx.recv() => farm.on_event(event, now),
+            _ = tick.tick() => farm.on_tick(now),
         }
+        farm.print_warnings();
+        farm.fill_slots(&tx);
     };
-    Ok(RenderClient::with_interceptor(channel, Auth(auth))
-        .max_decoding_message_size(photon_proto::MAX_MESSAGE)
-        .max_encoding_message_size(photon_proto::MAX_MESSAGE))
+    farm.finish(result, sessions)
 }
 
-/// An error with its sources, on one line.
-fn error_chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut source = e.source();
-    while let Some(inner) = source {
-        let part = inner.to_string();
-        // Layers often repeat their inner error's words; say each once.
-        if !s.ends_with(&part) {
-            s.push_str(": ");
-            s.push_str(&part);
-        }
-        source = inner.source();
-    }
-    s
-}
-
-/// A status as one readable line.
-fn status_line(s: &tonic::Status) -> String {
-    let code = format!("{:?}", s.code());
-    if s.message().is_empty() { code } else { format!("{} ({code})", s.message()) }
-}
-
-/// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
-pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), String> {
-    let request = pb::HelloRequest {
-        protocol_version: photon_proto::PROTOCOL_VERSION,
-        build_id: photon_proto::BUILD_ID.to_owned(),
-        crate_version: photon_proto::CRATE_VERSION.to_owned(),
-    };
-    // A peer that accepts the connection and never answers must not hang the render.
-    let silent = || format!("no answer to hello within {} s", ANSWER_TIMEOUT.as_secs());
-    let hello = tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))
-        .await
-        .map_err(|_| silent())?
-        .map_err(|s| {
-            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer.
-            let hint = match s.code() {
-                Code::Unavailable | Code::Unknown | Code::Internal => {
-                    " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
-                }
-                _ => "",
+/// One task per worker: connect, say hello, ship blobs, and report the worker ready or refused.
+fn start_sessions(
+    job: &Job,
+    workers: &[WorkerAddr],
+    options: &Options,
+    tx: &UnboundedSender<Event>,
+) -> Vec<JoinHandle<()>> {
+    let mut sessions = Vec::new();
+    for (i, addr) in workers.iter().enumerate() {
+        let (tx, job, addr, token) = (tx.clone(), job.clone(), addr.clone(), options.token.clone());
+        let tls_ca = options.tls_ca.clone();
+        let worker = WorkerId(i as u32);
+        sessions.push(tokio::spawn(async move {
+            let event = match session::open(&addr, token.as_deref(), tls_ca.as_deref(), &job).await {
+                Ok(ready) => Event::Ready { worker, ready: Box::new(ready) },
+                Err(reason) => Event::Refused { worker, reason },
             };
-            format!("refused: {}{hint}", status_line(&s))
-        })?
-        .into_inner();
-    let ids: Vec<String> = job.blobs.keys().cloned().collect();
-    let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
-        .await
-        .map_err(|_| format!("no answer to the blob list within {} s", ANSWER_TIMEOUT.as_secs()))?
-        .map_err(|s| format!("listing blobs: {}", status_line(&s)))?
-        .into_inner()
-        .missing;
-    let mut shipped = 0;
-    for id in missing {
-        let Some(blob) = job.blobs.get(&id) else {
-            return Err(format!("asked for blob {id}, which this job does not have"));
-        };
-        if blob.len() as u64 > hello.max_blob_bytes {
-            return Err(format!(
-                "blob of {} MiB exceeds the worker's limit of {} MiB",
-                blob.len() >> 20,
-                hello.max_blob_bytes >> 20
-            ));
-        }
-        shipped += put_blob(client, &id, blob.clone()).await?;
+            let _ = tx.send(event);
+        }));
     }
-    Ok((hello, shipped))
-}
-
-/// Uploads one blob in chunks of at most [`photon_proto::MAX_CHUNK`] bytes, copied one at a time as the stream
-/// is sent. Allowed [`ANSWER_TIMEOUT`] plus a second per MiB (1 MiB/s is a very slow link).
-pub async fn put_blob(client: &mut Client, id: &str, blob: Arc<Vec<u8>>) -> Result<u64, String> {
-    let header = pb::BlobHeader { id: id.to_owned(), size: blob.len() as u64 };
-    let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
-    let reply = tokio::time::timeout(limit, client.put_blob(tokio_stream::iter(chunk_messages(header, blob))))
-        .await
-        .map_err(|_| format!("shipping blob {id} took longer than {} s", limit.as_secs()))?
-        .map_err(|s| format!("shipping blob {id}: {}", status_line(&s)))?;
-    Ok(reply.into_inner().stored)
-}
-
-/// How long a worker may take to answer a short call (hello, the blob list).
-pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(30);
-
-/// The upload messages of a blob, made lazily: the header rides with the first chunk.
-pub fn chunk_messages(header: pb::BlobHeader, blob: Arc<Vec<u8>>) -> impl Iterator<Item = pb::BlobChunk> {
-    let n = blob.len().div_ceil(photon_proto::MAX_CHUNK).max(1);
-    let mut header = Some(header);
-    (0..n).map(move |i| {
-        let lo = i * photon_proto::MAX_CHUNK;
-        let hi = (lo + photon_proto::MAX_CHUNK).min(blob.len());
-        pb::BlobChunk { header: header.take(), data: blob[lo..hi].to_vec() }
-    })
-}
-
-/// What a strip task reports.
-enum StripError {
-    /// The worker cannot be reached: it is lost.
-    Lost(String),
-    /// The worker answered, and the answer was a failure.
-    Failed(StripFailure),
-}
-
-/// Classifies a status returned by a strip call.
-fn classify(s: &tonic::Status) -> StripError {
-    let line = status_line(s);
-    match s.code() {
-        // The connection is gone (or never came back): the worker is lost.
-        Code::Unavailable | Code::Unknown | Code::Aborted => StripError::Lost(line),
-        // The job itself cannot render: another worker would fail the same way.
-        Code::InvalidArgument | Code::OutOfRange => StripError::Failed(StripFailure::fatal(line)),
-        // Busy, or cancelled: try again elsewhere, not the worker's fault.
-        Code::ResourceExhausted | Code::Cancelled | Code::DeadlineExceeded => {
-            StripError::Failed(StripFailure::transient(line))
-        }
-        _ => StripError::Failed(StripFailure::counted(line)),
-    }
-}
-
-/// Asks `client` for the rows of one strip and validates what comes back.
-async fn fetch_strip(
-    mut client: Client,
-    request: pb::StripRequest,
-    width: u32,
-    progress: impl Fn(u32),
-) -> Result<(Vec<f32>, u64), StripError> {
-    let (row_start, row_end) = (request.row_start, request.row_end);
-    let mut stream = client.render_strip(request).await.map_err(|s| classify(&s))?.into_inner();
-    let row_bytes = 12 * width as usize;
-    let expected = row_bytes * (row_end - row_start) as usize;
-    let mut bytes: Vec<u8> = Vec::with_capacity(expected);
-    let bad = |why: String| StripError::Failed(StripFailure::counted(why));
-    loop {
-        let event = match stream.message().await {
-            Ok(Some(e)) => e,
-            Ok(None) => return Err(StripError::Lost("the strip's stream ended before its summary".into())),
-            Err(s) => return Err(classify(&s)),
-        };
-        match event.event {
-            Some(WireEvent::RowsDone(n)) => progress(n),
-            Some(WireEvent::Rows(rows)) => {
-                let next_row = row_start + (bytes.len() / row_bytes.max(1)) as u32;
-                if rows.first_row != next_row || rows.data.len() % row_bytes.max(1) != 0 {
-                    return Err(bad(format!(
-                        "pixel rows out of order: got {} bytes from row {}, expected whole rows from row {next_row}",
-                        rows.data.len(),
-                        rows.first_row
-                    )));
-                }
-                if bytes.len() + rows.data.len() > expected {
-                    return Err(bad(format!("more pixels than rows {row_start}..{row_end} hold")));
-                }
-                bytes.extend_from_slice(&rows.data);
-            }
-            Some(WireEvent::Done(summary)) => {
-                if bytes.len() != expected {
-                    return Err(bad(format!("{} of {expected} pixel bytes before the summary", bytes.len())));
-                }
-                if summary.checksum != photon_proto::checksum(&bytes) {
-                    return Err(bad("checksum mismatch: the pixels changed after the worker hashed them".into()));
-                }
-                let pixels = photon_proto::bytes_to_pixels(&bytes).unwrap_or_default();
-                if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
-                    let (x, y) = ((i / 3) as u32 % width.max(1), row_start + (i / 3) as u32 / width.max(1));
-                    return Err(bad(format!("pixel ({x}, {y}) holds {}: not a radiance", pixels[i])));
-                }
-                return Ok((pixels, summary.rays));
-            }
-            None => return Err(bad("an empty event".into())),
-        }
-    }
+    sessions
 }
 
 /// What the tasks tell the loop.
 enum Event {
-    Ready { worker: WorkerId, client: Box<Client>, hello: pb::HelloReply, shipped: u64, ship_s: f64 },
-    Refused { worker: WorkerId, reason: String },
+    Ready { worker: WorkerId, ready: Box<Ready> },
+    Refused { worker: WorkerId, reason: SessionError },
     Progress { worker: WorkerId, rows: u32 },
     Strip { worker: WorkerId, strip: StripId, attempt: u32, result: Result<(Vec<f32>, u64), StripError> },
+}
+
+/// Why the loop stopped before the image was complete.
+enum Stop {
+    /// A failure no retry can fix: the strip and why.
+    Fatal(String),
+    /// No worker is left, and none is still connecting.
+    NoWorkers,
 }
 
 /// A worker as the loop knows it.
@@ -475,326 +171,382 @@ struct Member {
     rows_live: u64,
 }
 
-/// Renders `job` on `workers`.
-pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Result<Outcome, FarmError> {
-    let t0 = Instant::now();
-    let width = job.width;
-    let n = workers.len() as u32;
-    let rows_per_strip = match (&options.resume, options.rows_per_strip) {
-        (Some(p), _) => p.rows_per_strip,
-        (None, Some(r)) => r,
-        (None, None) if job.progressive => crate::scheduler::rows_per_strip_progressive(job.height, n),
-        (None, None) => crate::scheduler::rows_per_strip_for(job.height, n),
-    };
-    let mut sched = Scheduler::with_policy(job.height, rows_per_strip, options.policy.clone());
-    let mut image = vec![0.0f32; 3 * width as usize * job.height as usize];
-    let mut done_rows: BTreeMap<u32, u32> = BTreeMap::new();
-    let mut resumed = 0;
-    if let Some(p) = &options.resume {
+/// The state of one render, owned by its event loop: the scheduler, the workers, the image so far and the
+/// strip calls in flight. Each event is one method call.
+struct Farm<'a> {
+    job: &'a Job,
+    t0: Instant,
+    rows_per_strip: u32,
+    sched: Scheduler,
+    members: Vec<Member>,
+    /// Linear RGB, row-major.
+    image: Vec<f32>,
+    /// Rows of finished strips (first row → end), for the partial file.
+    done_rows: BTreeMap<u32, u32>,
+    /// Strip calls in flight; aborting one cancels the strip on its worker.
+    tasks: BTreeMap<(WorkerId, StripId), AbortHandle>,
+    rays: u64,
+    first_ready: Option<Instant>,
+    /// Workers whose session has not reported yet.
+    unresolved: usize,
+    resumed: usize,
+    mixed_math_warned: bool,
+    warnings: Vec<Warning>,
+    bar: indicatif::ProgressBar,
+}
+
+impl<'a> Farm<'a> {
+    fn new(job: &'a Job, workers: &[WorkerAddr], options: &Options) -> Result<Self, FarmError> {
+        let t0 = Instant::now();
+        let n = workers.len() as u32;
+        let rows_per_strip = match (&options.resume, options.rows_per_strip) {
+            (Some(p), _) => p.rows_per_strip,
+            (None, Some(r)) => r,
+            (None, None) if job.progressive => crate::scheduler::rows_per_strip_progressive(job.height, n),
+            (None, None) => crate::scheduler::rows_per_strip_for(job.height, n),
+        };
+        let members = workers
+            .iter()
+            .map(|a| Member {
+                addr: a.clone(),
+                client: None,
+                hello: None,
+                shipped: 0,
+                ship_s: 0.0,
+                out: None,
+                rows_live: 0,
+            })
+            .collect();
+        let mut farm = Self {
+            job,
+            t0,
+            rows_per_strip,
+            sched: Scheduler::with_policy(job.height, rows_per_strip, options.policy.clone()),
+            members,
+            image: vec![0.0f32; 3 * job.width as usize * job.height as usize],
+            done_rows: BTreeMap::new(),
+            tasks: BTreeMap::new(),
+            rays: 0,
+            first_ready: None,
+            unresolved: workers.len(),
+            resumed: 0,
+            mixed_math_warned: false,
+            warnings: Vec::new(),
+            bar: indicatif::ProgressBar::hidden(),
+        };
+        if let Some(p) = &options.resume {
+            farm.resume(p)?;
+        }
+        farm.bar = progress_bar(options.progress, farm.sched.strip_count(), farm.resumed);
+        Ok(farm)
+    }
+
+    /// Takes the strips of a partial file that fit this job's cut.
+    fn resume(&mut self, p: &Partial) -> Result<(), FarmError> {
+        let job = self.job;
         if p.fingerprint != job.fingerprint() || (p.width, p.height) != (job.width, job.height) {
             return Err(FarmError::Resume(
                 "the partial file was made by another scene, other settings or another build: render without --resume"
                     .into(),
             ));
         }
+        let width = job.width as usize;
         for (first_row, pixels) in &p.strips {
-            let id = StripId(first_row / rows_per_strip.max(1));
-            let Some(rows) = sched.strip_rows(id) else { continue };
-            let len = 3 * width as usize * rows.len();
+            let id = StripId(first_row / self.rows_per_strip.max(1));
+            let Some(rows) = self.sched.strip_rows(id) else { continue };
+            let len = 3 * width * rows.len();
             if rows.start != *first_row || pixels.len() != len {
                 continue;
             }
-            let at = 3 * width as usize * rows.start as usize;
-            image[at..at + len].copy_from_slice(pixels);
-            if sched.mark_done(id) {
-                done_rows.insert(rows.start, rows.end);
-                resumed += 1;
+            let at = 3 * width * rows.start as usize;
+            self.image[at..at + len].copy_from_slice(pixels);
+            if self.sched.mark_done(id) {
+                self.done_rows.insert(rows.start, rows.end);
+                self.resumed += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// How the render ended, once it has.
+    fn end(&self) -> Option<Result<(), Stop>> {
+        if self.sched.is_done() {
+            return Some(Ok(()));
+        }
+        if let Some((strip, failure)) = self.sched.fatal() {
+            return Some(Err(Stop::Fatal(format!("{strip}: {}", failure.reason))));
+        }
+        if self.unresolved == 0 && self.sched.all_workers_gone() {
+            return Some(Err(Stop::NoWorkers));
+        }
+        None
+    }
+
+    fn on_event(&mut self, event: Event, now: Duration) {
+        match event {
+            Event::Ready { worker, ready } => self.on_ready(worker, *ready),
+            Event::Refused { worker, reason } => self.on_refused(worker, reason.to_string()),
+            Event::Progress { worker, rows } => self.members[worker.0 as usize].rows_live = u64::from(rows),
+            Event::Strip { worker, strip, attempt, result } => self.on_strip(worker, strip, attempt, result, now),
+        }
+    }
+
+    fn on_ready(&mut self, worker: WorkerId, ready: Ready) {
+        self.unresolved -= 1;
+        self.first_ready.get_or_insert_with(Instant::now);
+        let Ready { client, hello, shipped, ship_s } = ready;
+        let other_mode = self.members.iter().find_map(|o| {
+            o.hello.as_ref().filter(|h| h.math_mode != hello.math_mode).map(|h| (&o.addr.name, &h.math_mode))
+        });
+        if let (Some((other, other_mode)), false) = (other_mode, self.mixed_math_warned) {
+            self.warnings.push(Warning::MixedMath {
+                worker: self.members[worker.0 as usize].addr.name.clone(),
+                mode: hello.math_mode.clone(),
+                other: other.clone(),
+                other_mode: other_mode.clone(),
+            });
+            self.mixed_math_warned = true;
+        }
+        let m = &mut self.members[worker.0 as usize];
+        tracing::info!(
+            worker = %m.addr.name, arch = %hello.arch, math = %hello.math_mode, threads = hello.threads,
+            shipped, ship_s, "ready"
+        );
+        self.sched.add_worker(worker, hello.threads);
+        (m.client, m.hello, m.shipped, m.ship_s) = (Some(client), Some(hello), shipped, ship_s);
+    }
+
+    fn on_refused(&mut self, worker: WorkerId, reason: String) {
+        self.unresolved -= 1;
+        let m = &mut self.members[worker.0 as usize];
+        self.warnings.push(Warning::Refused { worker: m.addr.name.clone(), reason: reason.clone() });
+        m.out = Some(reason);
+    }
+
+    fn on_strip(
+        &mut self,
+        worker: WorkerId,
+        strip: StripId,
+        attempt: u32,
+        result: Result<(Vec<f32>, u64), StripError>,
+        now: Duration,
+    ) {
+        self.tasks.remove(&(worker, strip));
+        self.members[worker.0 as usize].rows_live = 0;
+        match result {
+            Ok((pixels, rays)) => self.on_pixels(worker, strip, attempt, &pixels, rays, now),
+            Err(e) if e.lost() => self.on_lost(worker, e.to_string(), now),
+            Err(e) => {
+                let failure = e.failure();
+                tracing::warn!("{}: {strip}: {failure}", self.members[worker.0 as usize].addr.name);
+                self.on_failure(worker, strip, failure, now);
             }
         }
     }
-    let (tx, mut rx) = mpsc::unbounded_channel::<Event>();
-    let mut members: Vec<Member> = workers
-        .iter()
-        .map(|a| Member {
-            addr: a.clone(),
-            client: None,
-            hello: None,
-            shipped: 0,
-            ship_s: 0.0,
-            out: None,
-            rows_live: 0,
-        })
-        .collect();
-    let mut sessions = Vec::new();
-    for (i, addr) in workers.iter().enumerate() {
-        let (tx, job, addr, token) = (tx.clone(), job.clone(), addr.clone(), options.token.clone());
-        let tls_ca = options.tls_ca.clone();
-        let worker = WorkerId(i as u32);
-        sessions.push(tokio::spawn(async move {
-            let started = Instant::now();
-            let event = match connect(&addr.uri, token.as_deref(), tls_ca.as_deref(), Duration::from_secs(3)).await {
-                Err(reason) => Event::Refused { worker, reason },
-                Ok(mut client) => match introduce(&mut client, &job).await {
-                    Ok((hello, shipped)) => Event::Ready {
-                        worker,
-                        client: Box::new(client),
-                        hello,
-                        shipped,
-                        ship_s: started.elapsed().as_secs_f64(),
-                    },
-                    Err(reason) => Event::Refused { worker, reason },
-                },
-            };
-            let _ = tx.send(event);
-        }));
+
+    /// A valid strip: the first copy wins and the others are cancelled.
+    fn on_pixels(&mut self, worker: WorkerId, strip: StripId, attempt: u32, pixels: &[f32], rays: u64, now: Duration) {
+        match self.sched.complete(worker, strip, attempt, now) {
+            Completion::Accepted { cancel } => {
+                if let Some(rows) = self.sched.strip_rows(strip) {
+                    let at = 3 * self.job.width as usize * rows.start as usize;
+                    self.image[at..at + pixels.len()].copy_from_slice(pixels);
+                    self.done_rows.insert(rows.start, rows.end);
+                }
+                self.rays += rays;
+                self.cancel(cancel);
+                self.bar.inc(1);
+            }
+            Completion::Duplicate | Completion::Unknown => {}
+        }
     }
-    let mut unresolved = workers.len();
-    let mut tasks: BTreeMap<(WorkerId, StripId), AbortHandle> = BTreeMap::new();
-    let mut rays = 0u64;
-    let mut first_ready: Option<Instant> = None;
-    let bar = progress_bar(options.progress, sched.strip_count(), resumed);
-    let mut tick = tokio::time::interval(Duration::from_millis(250));
-    let mut mixed_math_warned = false;
-    let result = loop {
-        if sched.is_done() {
-            break Ok(());
+
+    /// A worker that cannot be reached: its strips go to the others.
+    fn on_lost(&mut self, worker: WorkerId, reason: String, now: Duration) {
+        if self.sched.worker_stats(worker).is_some_and(|s| s.state == WorkerState::Active) {
+            let name = self.members[worker.0 as usize].addr.name.clone();
+            self.warnings.push(Warning::Lost { worker: name, reason: reason.clone() });
         }
-        if let Some((strip, failure)) = sched.fatal() {
-            break Err(format!("{strip}: {}", failure.reason));
+        let strips = self.sched.worker_lost(worker, now);
+        self.cancel(strips.into_iter().map(|s| (worker, s)));
+        self.members[worker.0 as usize].out.get_or_insert(format!("lost: {reason}"));
+    }
+
+    /// Reports a failed strip to the scheduler, and drops the worker when that was one failure too many.
+    fn on_failure(&mut self, worker: WorkerId, strip: StripId, failure: StripFailure, now: Duration) {
+        if let FailureOutcome::WorkerDropped { reason, cancel } = self.sched.failed(worker, strip, failure, now) {
+            let name = self.members[worker.0 as usize].addr.name.clone();
+            self.warnings.push(Warning::Dropped { worker: name, reason: reason.clone() });
+            self.cancel(cancel.into_iter().map(|s| (worker, s)));
+            self.members[worker.0 as usize].out = Some(format!("dropped: {reason}"));
         }
-        if unresolved == 0 && sched.all_workers_gone() {
-            break Err(String::new());
+    }
+
+    /// Withdraws the strips past their deadline, as failures of their workers.
+    fn on_tick(&mut self, now: Duration) {
+        for (worker, strip) in self.sched.expired(now) {
+            self.cancel([(worker, strip)]);
+            let deadline = self.sched.deadline(worker, strip).unwrap_or_default();
+            self.on_failure(worker, strip, StripFailure::timed_out(now, deadline), now);
         }
-        let now = t0.elapsed();
-        tokio::select! {
-            Some(event) = rx.recv() => match event {
-                Event::Ready { worker, client, hello, shipped, ship_s } => {
-                    unresolved -= 1;
-                    first_ready.get_or_insert_with(Instant::now);
-                    let other_mode = members.iter().find_map(|o| {
-                        o.hello.as_ref().filter(|h| h.math_mode != hello.math_mode).map(|h| (&o.addr.name, &h.math_mode))
-                    });
-                    if let (Some((other, mode)), false) = (other_mode, mixed_math_warned) {
-                        eprintln!(
-                            "warning: workers compute with different math modes ({} on {}, {} on {other}): their \
-                             strips may differ in the last bits, and the image depends on which worker rendered what",
-                            hello.math_mode, members[worker.0 as usize].addr.name, mode
-                        );
-                        mixed_math_warned = true;
-                    }
-                    let m = &mut members[worker.0 as usize];
-                    tracing::info!(
-                        worker = %m.addr.name, arch = %hello.arch, math = %hello.math_mode, threads = hello.threads,
-                        shipped, ship_s, "ready"
-                    );
-                    sched.add_worker(worker, hello.threads);
-                    (m.client, m.hello, m.shipped, m.ship_s) = (Some(*client), Some(hello), shipped, ship_s);
-                }
-                Event::Refused { worker, reason } => {
-                    unresolved -= 1;
-                    let m = &mut members[worker.0 as usize];
-                    eprintln!("warning: worker {}: {reason}", m.addr.name);
-                    m.out = Some(reason);
-                }
-                Event::Progress { worker, rows } => {
-                    members[worker.0 as usize].rows_live = u64::from(rows);
-                }
-                Event::Strip { worker, strip, attempt, result } => {
-                    tasks.remove(&(worker, strip));
-                    members[worker.0 as usize].rows_live = 0;
-                    match result {
-                        Ok((pixels, strip_rays)) => match sched.complete(worker, strip, attempt, now) {
-                            Completion::Accepted { cancel } => {
-                                if let Some(rows) = sched.strip_rows(strip) {
-                                    let at = 3 * width as usize * rows.start as usize;
-                                    image[at..at + pixels.len()].copy_from_slice(&pixels);
-                                    done_rows.insert(rows.start, rows.end);
-                                }
-                                rays += strip_rays;
-                                for key in cancel {
-                                    if let Some(h) = tasks.remove(&key) {
-                                        h.abort();
-                                    }
-                                }
-                                bar.inc(1);
-                            }
-                            Completion::Duplicate | Completion::Unknown => {}
-                        },
-                        Err(StripError::Lost(reason)) => {
-                            let name = &members[worker.0 as usize].addr.name;
-                            if sched.worker_stats(worker).is_some_and(|s| s.state == WorkerState::Active) {
-                                eprintln!("warning: worker {name} lost ({reason}); its strips go to the others");
-                            }
-                            for s in sched.worker_lost(worker, now) {
-                                if let Some(h) = tasks.remove(&(worker, s)) {
-                                    h.abort();
-                                }
-                            }
-                            members[worker.0 as usize].out.get_or_insert(format!("lost: {reason}"));
-                        }
-                        Err(StripError::Failed(failure)) => {
-                            let name = members[worker.0 as usize].addr.name.clone();
-                            tracing::warn!("{name}: {strip}: {failure}");
-                            if let FailureOutcome::WorkerDropped { reason, cancel } =
-                                sched.failed(worker, strip, failure, now)
-                            {
-                                eprintln!("warning: worker {name} dropped: {reason}");
-                                for s in cancel {
-                                    if let Some(h) = tasks.remove(&(worker, s)) {
-                                        h.abort();
-                                    }
-                                }
-                                members[worker.0 as usize].out = Some(format!("dropped: {reason}"));
-                            }
-                        }
-                    }
-                }
-            },
-            _ = tick.tick() => {
-                for (worker, strip) in sched.expired(now) {
-                    if let Some(h) = tasks.remove(&(worker, strip)) {
-                        h.abort();
-                    }
-                    let (elapsed, deadline) = (now, sched.deadline(worker, strip).unwrap_or_default());
-                    let name = members[worker.0 as usize].addr.name.clone();
-                    if let FailureOutcome::WorkerDropped { reason, cancel } =
-                        sched.failed(worker, strip, StripFailure::timed_out(elapsed, deadline), now)
-                    {
-                        eprintln!("warning: worker {name} dropped: {reason}");
-                        for s in cancel {
-                            if let Some(h) = tasks.remove(&(worker, s)) {
-                                h.abort();
-                            }
-                        }
-                        members[worker.0 as usize].out = Some(format!("dropped: {reason}"));
-                    }
-                }
-                bar.set_message(rates(&sched, &members, width));
+        self.bar.set_message(self.rates());
+    }
+
+    /// Cancels strip calls in flight by dropping them (the worker then stops rendering them).
+    fn cancel(&mut self, calls: impl IntoIterator<Item = (WorkerId, StripId)>) {
+        for key in calls {
+            if let Some(h) = self.tasks.remove(&key) {
+                h.abort();
             }
         }
-        // Fill every free slot.
-        let now = t0.elapsed();
-        for (i, m) in members.iter().enumerate() {
+    }
+
+    /// Prints the warnings gathered since the last call.
+    fn print_warnings(&mut self) {
+        for w in self.warnings.drain(..) {
+            eprintln!("warning: {w}");
+        }
+    }
+
+    /// Gives every ready worker strips until its slots are full.
+    fn fill_slots(&mut self, tx: &UnboundedSender<Event>) {
+        let now = self.t0.elapsed();
+        for (i, m) in self.members.iter().enumerate() {
             let worker = WorkerId(i as u32);
             let Some(client) = &m.client else { continue };
-            while let Some(a) = sched.assign(worker, now) {
-                let request = pb::StripRequest {
-                    scene_blob: job.scene_blob.clone(),
-                    photons_blob: job.photons_blob.clone().unwrap_or_default(),
-                    frame: job.frame.clone(),
-                    row_start: a.rows.start,
-                    row_end: a.rows.end,
-                    strip: a.strip.0,
-                    attempt: a.attempt,
-                };
-                let (tx, client) = (tx.clone(), client.clone());
-                let (strip, attempt) = (a.strip, a.attempt);
-                let progress_tx = tx.clone();
-                let handle = tokio::spawn(async move {
-                    let progress = |rows| {
-                        let _ = progress_tx.send(Event::Progress { worker, rows });
-                    };
-                    let result = fetch_strip(client, request, width, progress).await;
-                    let _ = tx.send(Event::Strip { worker, strip, attempt, result });
-                });
-                tasks.insert((worker, strip), handle.abort_handle());
+            while let Some(a) = self.sched.assign(worker, now) {
+                let strip = a.strip;
+                let handle = spawn_strip(self.job, worker, a, client.clone(), tx.clone());
+                self.tasks.insert((worker, strip), handle);
             }
         }
-    };
-    bar.finish_and_clear();
-    for h in tasks.values() {
-        h.abort();
     }
-    for s in sessions {
-        s.abort();
-    }
-    let render_s = first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
-    let ship_s = first_ready.map_or(t0.elapsed().as_secs_f64(), |t| (t - t0).as_secs_f64());
-    let reports = reports(&sched, &members, width);
-    match result {
-        Ok(()) => Ok(Outcome { pixels: image, rays, workers: reports, ship_s, render_s, resumed }),
-        Err(reason) => {
-            let strips = done_rows
-                .iter()
-                .map(|(&start, &end)| {
-                    let (lo, hi) = (3 * width as usize * start as usize, 3 * width as usize * end as usize);
-                    (start, image[lo..hi].to_vec())
-                })
-                .collect();
-            let partial = Partial { fingerprint: job.fingerprint(), width, height: job.height, rows_per_strip, strips };
-            if reason.is_empty() {
-                let reasons = members
+
+    /// Stops what is still running and says how the render went.
+    fn finish(mut self, result: Result<(), Stop>, sessions: Vec<JoinHandle<()>>) -> Result<Outcome, FarmError> {
+        self.bar.finish_and_clear();
+        self.cancel(self.tasks.keys().copied().collect::<Vec<_>>());
+        for s in sessions {
+            s.abort();
+        }
+        let (t0, first_ready) = (self.t0, self.first_ready);
+        let render_s = first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let ship_s = first_ready.map_or(t0.elapsed().as_secs_f64(), |t| (t - t0).as_secs_f64());
+        let workers = self.reports();
+        let stop = match result {
+            Ok(()) => {
+                let (pixels, rays, resumed) = (self.image, self.rays, self.resumed);
+                return Ok(Outcome { pixels, rays, workers, ship_s, render_s, resumed });
+            }
+            Err(stop) => stop,
+        };
+        let partial = self.partial();
+        match stop {
+            Stop::NoWorkers => {
+                let reasons = self
+                    .members
                     .iter()
                     .map(|m| format!("{}: {}", m.addr.name, m.out.as_deref().unwrap_or("gone")))
                     .collect::<Vec<_>>()
                     .join("; ");
                 let reasons = if reasons.is_empty() { "no workers were given".to_owned() } else { reasons };
-                Err(FarmError::NoWorkers { reasons, partial, workers: reports })
-            } else {
-                Err(FarmError::Fatal { reason, partial, workers: reports })
+                Err(FarmError::NoWorkers { reasons, partial, workers })
             }
+            Stop::Fatal(reason) => Err(FarmError::Fatal { reason, partial, workers }),
         }
     }
-}
 
-fn progress_bar(show: bool, strips: usize, resumed: usize) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
+    /// The finished strips, for `--resume`.
+    fn partial(&self) -> Partial {
+        let width = self.job.width as usize;
+        let strips = self
+            .done_rows
+            .iter()
+            .map(|(&start, &end)| {
+                let (lo, hi) = (3 * width * start as usize, 3 * width * end as usize);
+                (start, self.image[lo..hi].to_vec())
+            })
+            .collect();
+        let job = self.job;
+        Partial {
+            fingerprint: job.fingerprint(),
+            width: job.width,
+            height: job.height,
+            rows_per_strip: self.rows_per_strip,
+            strips,
+        }
     }
-    let bar = indicatif::ProgressBar::new(strips as u64);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} strips {msg}")
-    {
-        bar.set_style(style);
+
+    /// Per-worker rates for the progress bar: megapixels per busy second so far.
+    fn rates(&self) -> String {
+        self.sched
+            .workers()
+            .filter(|(_, s)| s.state == WorkerState::Active)
+            .map(|(id, s)| {
+                let m = &self.members[id.0 as usize];
+                let busy = s.busy.as_secs_f64().max(1e-3);
+                let mpix = (s.rows + m.rows_live) as f64 * f64::from(self.job.width) / 1e6;
+                format!("{} {:.2} Mpx/s", m.addr.name, mpix / busy)
+            })
+            .collect::<Vec<_>>()
+            .join(" · ")
     }
-    bar.set_position(resumed as u64);
-    bar
+
+    /// One line per worker for the final table.
+    fn reports(&self) -> Vec<WorkerReport> {
+        let width = self.job.width;
+        self.members
+            .iter()
+            .enumerate()
+            .map(|(i, m)| {
+                let stats = self.sched.worker_stats(WorkerId(i as u32));
+                let (speculative, duplicates) = stats.map_or((0, 0), |s| (s.speculative, s.duplicates));
+                let (strips, busy_s, rows, failures) =
+                    stats.map_or((0, 0.0, 0, 0), |s| (s.strips, s.busy.as_secs_f64(), s.rows, s.failures));
+                let state = match (&m.out, stats.map(|s| &s.state)) {
+                    (Some(why), _) => why.clone(),
+                    (None, Some(WorkerState::Dropped(why))) => format!("dropped: {why}"),
+                    (None, Some(WorkerState::Lost)) => "lost".into(),
+                    (None, _) => "ok".into(),
+                };
+                WorkerReport {
+                    name: m.addr.name.clone(),
+                    platform: m.hello.as_ref().map(|h| format!("{} {}", h.arch, h.os)).unwrap_or_default(),
+                    threads: m.hello.as_ref().map_or(0, |h| h.threads),
+                    strips,
+                    busy_s,
+                    mpix_per_s: if busy_s > 0.0 { rows as f64 * f64::from(width) / 1e6 / busy_s } else { 0.0 },
+                    shipped_bytes: m.shipped,
+                    ship_s: m.ship_s,
+                    speculative,
+                    duplicates,
+                    failures,
+                    state,
+                }
+            })
+            .collect()
+    }
 }
 
-/// Per-worker rates for the progress bar: megapixels per busy second so far.
-fn rates(sched: &Scheduler, members: &[Member], width: u32) -> String {
-    sched
-        .workers()
-        .filter(|(_, s)| s.state == WorkerState::Active)
-        .map(|(id, s)| {
-            let m = &members[id.0 as usize];
-            let busy = s.busy.as_secs_f64().max(1e-3);
-            let mpix = (s.rows + m.rows_live) as f64 * f64::from(width) / 1e6;
-            format!("{} {:.2} Mpx/s", m.addr.name, mpix / busy)
-        })
-        .collect::<Vec<_>>()
-        .join(" · ")
-}
-
-fn reports(sched: &Scheduler, members: &[Member], width: u32) -> Vec<WorkerReport> {
-    members
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            let stats = sched.worker_stats(WorkerId(i as u32));
-            let (speculative, duplicates) = stats.map_or((0, 0), |s| (s.speculative, s.duplicates));
-            let (strips, busy_s, rows, failures) =
-                stats.map_or((0, 0.0, 0, 0), |s| (s.strips, s.busy.as_secs_f64(), s.rows, s.failures));
-            let state = match (&m.out, stats.map(|s| &s.state)) {
-                (Some(why), _) => why.clone(),
-                (None, Some(WorkerState::Dropped(why))) => format!("dropped: {why}"),
-                (None, Some(WorkerState::Lost)) => "lost".into(),
-                (None, _) => "ok".into(),
-            };
-            WorkerReport {
-                name: m.addr.name.clone(),
-                platform: m.hello.as_ref().map(|h| format!("{} {}", h.arch, h.os)).unwrap_or_default(),
-                threads: m.hello.as_ref().map_or(0, |h| h.threads),
-                strips,
-                busy_s,
-                mpix_per_s: if busy_s > 0.0 { rows as f64 * f64::from(width) / 1e6 / busy_s } else { 0.0 },
-                shipped_bytes: m.shipped,
-                ship_s: m.ship_s,
-                speculative,
-                duplicates,
-                failures,
-                state,
-            }
-        })
-        .collect()
+/// Starts the call of one assigned strip; its result comes back as an [`Event::Strip`].
+fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: UnboundedSender<Event>) -> AbortHandle {
+    let request = pb::StripRequest {
+        scene_blob: job.scene_blob.clone(),
+        photons_blob: job.photons_blob.clone().unwrap_or_default(),
+        frame: job.frame.clone(),
+        row_start: a.rows.start,
+        row_end: a.rows.end,
+        strip: a.strip.0,
+        attempt: a.attempt,
+    };
+    let (strip, attempt, width) = (a.strip, a.attempt, job.width);
+    let progress_tx = tx.clone();
+    let handle = tokio::spawn(async move {
+        let progress = |rows| {
+            let _ = progress_tx.send(Event::Progress { worker, rows });
+        };
+        let result = fetch_strip(client, request, width, progress).await;
+        let _ = tx.send(Event::Strip { worker, strip, attempt, result });
+    });
+    handle.abort_handle()
 }

@@ -1,12 +1,130 @@
 //! Where the workers come from: a host list file, an address list, worker processes started on loopback, or
 //! one worker server inside this process (the default).
 
-use crate::farm::WorkerAddr;
+use crate::session::WorkerAddr;
 use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 use tokio::io::AsyncBufReadExt;
+
+/// Why the workers cannot be found or started. Each message is the one the user reads.
+#[derive(Debug, thiserror::Error)]
+pub enum FleetError {
+    /// The host list cannot be read.
+    #[error("cannot read the host list {}: {cause}", path.display())]
+    ReadHosts {
+        /// The file.
+        path: PathBuf,
+        /// The reason.
+        cause: std::io::Error,
+    },
+    /// The host list is not valid TOML of the expected shape.
+    #[error("{}: {cause}", path.display())]
+    ParseHosts {
+        /// The file.
+        path: PathBuf,
+        /// The parser's message.
+        cause: toml::de::Error,
+    },
+    /// The host list names no worker.
+    #[error("{}: no [[worker]] entries (each needs an `address = \"host:port\"`)", path.display())]
+    NoHosts {
+        /// The file.
+        path: PathBuf,
+    },
+    /// An entry of the host list has a bad address.
+    #[error("{}: worker[{index}].address: {cause}", path.display())]
+    HostAddress {
+        /// The file.
+        path: PathBuf,
+        /// The entry.
+        index: usize,
+        /// What is wrong with it.
+        cause: AddressError,
+    },
+    /// An entry of `--workers` has a bad address.
+    #[error("--workers: {0}")]
+    WorkerAddress(AddressError),
+    /// `--workers` names no worker.
+    #[error("--workers needs at least one HOST:PORT")]
+    NoWorkers,
+    /// A `dns:` name resolved to nothing within the patience.
+    #[error("--workers {name}: {host_port} resolves to no address")]
+    DnsEmpty {
+        /// The entry.
+        name: String,
+        /// The name and port looked up.
+        host_port: String,
+    },
+    /// A `dns:` name did not resolve within the patience.
+    #[error("--workers {name}: {host_port} does not resolve: {cause}")]
+    DnsFailed {
+        /// The entry.
+        name: String,
+        /// The name and port looked up.
+        host_port: String,
+        /// The resolver's error.
+        cause: std::io::Error,
+    },
+    /// This executable's path is unknown, so the worker binary beside it cannot be found.
+    #[error("cannot locate this executable: {0}")]
+    CurrentExe(std::io::Error),
+    /// The worker binary is not beside this executable.
+    #[error(
+        "{} is missing: --local starts worker processes from it (build it with `cargo build --release -p \
+         photon-worker`)",
+        bin.display()
+    )]
+    MissingWorkerBinary {
+        /// Where it was looked for.
+        bin: PathBuf,
+    },
+    /// A local worker process cannot be started.
+    #[error("cannot start {}: {cause}", bin.display())]
+    Spawn {
+        /// The binary.
+        bin: PathBuf,
+        /// The reason.
+        cause: std::io::Error,
+    },
+    /// A local worker process has no standard output to read its address from.
+    #[error("no standard output from the worker")]
+    NoStdout,
+    /// A local worker did not print its address in time.
+    #[error("local worker {0} did not report its address within 10 s")]
+    AddressTimeout(usize),
+    /// A local worker's output cannot be read.
+    #[error("reading local worker {index}'s address: {cause}")]
+    ReadAddress {
+        /// The worker.
+        index: usize,
+        /// The reason.
+        cause: std::io::Error,
+    },
+    /// A local worker printed something else than its address.
+    #[error("local worker {index} said `{line}` instead of its address")]
+    UnexpectedLine {
+        /// The worker.
+        index: usize,
+        /// What it said.
+        line: String,
+    },
+    /// The in-process worker cannot start.
+    #[error(transparent)]
+    Worker(#[from] photon_worker::WorkerError),
+    /// No loopback port for the in-process worker.
+    #[error("cannot open a loopback port for the in-process worker: {0}")]
+    Loopback(std::io::Error),
+    /// The loopback port's address cannot be read.
+    #[error("{0}")]
+    LocalAddr(std::io::Error),
+}
+
+/// A worker address that is not `HOST:PORT` with a numeric port.
+#[derive(Debug, thiserror::Error)]
+#[error("`{0}` is not HOST:PORT")]
+pub struct AddressError(String);
 
 /// Which workers a command renders on.
 #[derive(Clone, Debug)]
@@ -36,7 +154,7 @@ pub struct Fleet {
 
 impl Fleet {
     /// Starts the workers of `spec` (remote ones are only listed: the render connects to them).
-    pub async fn start(spec: &FleetSpec) -> Result<Self, String> {
+    pub async fn start(spec: &FleetSpec) -> Result<Self, FleetError> {
         Ok(match spec {
             FleetSpec::InProcess(threads) => {
                 let w = InProcess::start(*threads).await?;
@@ -105,17 +223,20 @@ pub struct Hosts {
 }
 
 /// Reads a host list.
-pub fn read_hosts(path: &Path) -> Result<Hosts, String> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| format!("cannot read the host list {}: {e}", path.display()))?;
-    let hosts: HostsFile = toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+pub fn read_hosts(path: &Path) -> Result<Hosts, FleetError> {
+    let text = std::fs::read_to_string(path).map_err(|cause| FleetError::ReadHosts { path: path.into(), cause })?;
+    let hosts: HostsFile =
+        toml::from_str(&text).map_err(|cause| FleetError::ParseHosts { path: path.into(), cause })?;
     if hosts.worker.is_empty() {
-        return Err(format!("{}: no [[worker]] entries (each needs an `address = \"host:port\"`)", path.display()));
+        return Err(FleetError::NoHosts { path: path.into() });
     }
     let mut workers = Vec::new();
     for (i, w) in hosts.worker.iter().enumerate() {
-        let worker = worker_entry(&w.address, w.name.as_deref())
-            .map_err(|e| format!("{}: worker[{i}].address: {e}", path.display()))?;
+        let worker = worker_entry(&w.address, w.name.as_deref()).map_err(|cause| FleetError::HostAddress {
+            path: path.into(),
+            index: i,
+            cause,
+        })?;
         workers.push(worker);
     }
     let base = path.parent().unwrap_or(Path::new("."));
@@ -135,19 +256,19 @@ const DNS_PATIENCE: Duration = Duration::from_secs(120);
 
 /// Workers from `a:port,b:port`. An entry `dns:NAME:PORT` is every address `NAME` resolves to (a Kubernetes
 /// headless Service lists one per ready worker pod); it is resolved when the fleet starts.
-pub fn parse_workers(list: &str) -> Result<Vec<WorkerAddr>, String> {
+pub fn parse_workers(list: &str) -> Result<Vec<WorkerAddr>, FleetError> {
     let mut out = Vec::new();
     for a in list.split(',').map(str::trim).filter(|a| !a.is_empty()) {
-        out.push(worker_entry(a, None).map_err(|e| format!("--workers: {e}"))?);
+        out.push(worker_entry(a, None).map_err(FleetError::WorkerAddress)?);
     }
     if out.is_empty() {
-        return Err("--workers needs at least one HOST:PORT".into());
+        return Err(FleetError::NoWorkers);
     }
     Ok(out)
 }
 
 /// One worker entry of `--workers` or a host list: `HOST:PORT`, a URI, or `dns:NAME:PORT`.
-fn worker_entry(address: &str, name: Option<&str>) -> Result<WorkerAddr, String> {
+fn worker_entry(address: &str, name: Option<&str>) -> Result<WorkerAddr, AddressError> {
     let address = address.trim();
     match address.strip_prefix(DNS_PREFIX) {
         Some(host_port) => {
@@ -163,7 +284,7 @@ fn worker_entry(address: &str, name: Option<&str>) -> Result<WorkerAddr, String>
 
 /// Replaces each `dns:NAME:PORT` entry by one worker per distinct address of `NAME`, waiting up to
 /// [`DNS_PATIENCE`] for the name to resolve to something.
-async fn resolve_dns(addrs: &[WorkerAddr]) -> Result<Vec<WorkerAddr>, String> {
+async fn resolve_dns(addrs: &[WorkerAddr]) -> Result<Vec<WorkerAddr>, FleetError> {
     let mut out = Vec::new();
     for w in addrs {
         let Some(host_port) = w.uri.strip_prefix(DNS_PREFIX) else {
@@ -176,8 +297,13 @@ async fn resolve_dns(addrs: &[WorkerAddr]) -> Result<Vec<WorkerAddr>, String> {
             match result {
                 Ok(found) if !found.is_empty() => break found,
                 _ if tokio::time::Instant::now() < deadline => tokio::time::sleep(Duration::from_secs(1)).await,
-                Ok(_) => return Err(format!("--workers {}: {host_port} resolves to no address", w.name)),
-                Err(e) => return Err(format!("--workers {}: {host_port} does not resolve: {e}", w.name)),
+                Ok(_) => {
+                    return Err(FleetError::DnsEmpty { name: w.name.clone(), host_port: host_port.to_owned() });
+                }
+                Err(cause) => {
+                    let (name, host_port) = (w.name.clone(), host_port.to_owned());
+                    return Err(FleetError::DnsFailed { name, host_port, cause });
+                }
             }
         };
         tracing::info!(name = %host_port, workers = found.len(), "resolved");
@@ -187,11 +313,11 @@ async fn resolve_dns(addrs: &[WorkerAddr]) -> Result<Vec<WorkerAddr>, String> {
 }
 
 /// An address must be `host:port` (optionally with an `http://` or `https://` scheme) with a numeric port.
-fn check_address(a: &str) -> Result<(), String> {
+fn check_address(a: &str) -> Result<(), AddressError> {
     let rest = a.split_once("://").map_or(a, |(_, r)| r).trim_end_matches('/');
     match rest.rsplit_once(':') {
         Some((host, port)) if !host.is_empty() && port.parse::<u16>().is_ok() => Ok(()),
-        _ => Err(format!("`{a}` is not HOST:PORT")),
+        _ => Err(AddressError(a.to_owned())),
     }
 }
 
@@ -204,7 +330,7 @@ pub struct LocalWorkers {
 
 impl LocalWorkers {
     /// Starts `n` `photon-worker` processes on free loopback ports, sharing the machine's cores between them.
-    pub async fn start(n: usize, threads_total: usize, token_file: Option<&Path>) -> Result<Self, String> {
+    pub async fn start(n: usize, threads_total: usize, token_file: Option<&Path>) -> Result<Self, FleetError> {
         let bin = worker_binary()?;
         let threads = (threads_total / n.max(1)).max(1);
         let mut children = Vec::new();
@@ -218,17 +344,17 @@ impl LocalWorkers {
             if let Some(t) = token_file {
                 cmd.arg("--token-file").arg(t);
             }
-            let mut child = cmd.spawn().map_err(|e| format!("cannot start {}: {e}", bin.display()))?;
-            let stdout = child.stdout.take().ok_or("no standard output from the worker")?;
+            let mut child = cmd.spawn().map_err(|cause| FleetError::Spawn { bin: bin.clone(), cause })?;
+            let stdout = child.stdout.take().ok_or(FleetError::NoStdout)?;
             let mut lines = tokio::io::BufReader::new(stdout).lines();
             let line = tokio::time::timeout(Duration::from_secs(10), lines.next_line())
                 .await
-                .map_err(|_| format!("local worker {i} did not report its address within 10 s"))?
-                .map_err(|e| format!("reading local worker {i}'s address: {e}"))?
+                .map_err(|_| FleetError::AddressTimeout(i))?
+                .map_err(|cause| FleetError::ReadAddress { index: i, cause })?
                 .unwrap_or_default();
             let addr = line
                 .strip_prefix("photon-worker listening on ")
-                .ok_or_else(|| format!("local worker {i} said `{line}` instead of its address"))?;
+                .ok_or_else(|| FleetError::UnexpectedLine { index: i, line: line.clone() })?;
             addrs.push(WorkerAddr::new(addr, Some(&format!("local-{i}"))));
             children.push(child);
         }
@@ -244,8 +370,8 @@ impl LocalWorkers {
 }
 
 /// `photon-worker` next to this executable (or one folder up, for Cargo's examples and benches).
-fn worker_binary() -> Result<PathBuf, String> {
-    let exe = std::env::current_exe().map_err(|e| format!("cannot locate this executable: {e}"))?;
+fn worker_binary() -> Result<PathBuf, FleetError> {
+    let exe = std::env::current_exe().map_err(FleetError::CurrentExe)?;
     let name = format!("photon-worker{}", std::env::consts::EXE_SUFFIX);
     let bin = exe.with_file_name(&name);
     let up = exe.parent().and_then(Path::parent).map(|d| d.join(&name));
@@ -254,11 +380,7 @@ fn worker_binary() -> Result<PathBuf, String> {
     } else if let Some(up) = up.filter(|p| p.is_file()) {
         Ok(up)
     } else {
-        Err(format!(
-            "{} is missing: --local starts worker processes from it (build it with `cargo build --release -p \
-             photon-worker`)",
-            bin.display()
-        ))
+        Err(FleetError::MissingWorkerBinary { bin })
     }
 }
 
@@ -271,13 +393,11 @@ pub struct InProcess {
 
 impl InProcess {
     /// Starts it with `threads` render threads (`None`: all cores).
-    pub async fn start(threads: Option<usize>) -> Result<Self, String> {
+    pub async fn start(threads: Option<usize>) -> Result<Self, FleetError> {
         let config = photon_worker::Config { threads, ..photon_worker::Config::default() };
         let worker = photon_worker::Worker::new(config)?;
-        let listener = tokio::net::TcpListener::bind("127.0.0.1:0")
-            .await
-            .map_err(|e| format!("cannot open a loopback port for the in-process worker: {e}"))?;
-        let addr = listener.local_addr().map_err(|e| e.to_string())?;
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.map_err(FleetError::Loopback)?;
+        let addr = listener.local_addr().map_err(FleetError::LocalAddr)?;
         let (stop, stopped) = tokio::sync::oneshot::channel::<()>();
         tokio::spawn(async move {
             let shutdown = async {
@@ -335,14 +455,14 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let p = dir.join("hosts.toml");
         std::fs::write(&p, "[[worker]]\naddress = \"a:1\"\nname = \"A\"\n[[worker]]\naddress = \"b\"\n").unwrap();
-        let e = read_hosts(&p).unwrap_err();
+        let e = read_hosts(&p).unwrap_err().to_string();
         assert!(e.contains("hosts.toml") && e.contains("worker[1].address"), "{e}");
         std::fs::write(&p, "token_file = \"t\"\n[[worker]]\naddress = \"a:1\"\nname = \"A\"\n").unwrap();
         let hosts = read_hosts(&p).unwrap();
         assert_eq!(hosts.workers[0].name, "A");
         assert_eq!(hosts.token_file.unwrap(), dir.join("t"));
         std::fs::write(&p, "[[worker]]\nadress = \"a:1\"\n").unwrap();
-        let e = read_hosts(&p).unwrap_err();
+        let e = read_hosts(&p).unwrap_err().to_string();
         assert!(e.contains("adress"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -1,17 +1,28 @@
-//! `photon-coordinator` as a library: the parts of the command line that are worth testing on their own.
+//! `photon-coordinator` as a library: the command line's commands, and the parts worth testing on their own.
 //!
 //! [`scheduler`] decides which worker renders which strip of rows. It is a pure state machine (no clock, no
 //! network, no async): the caller feeds it events with the time they happened and acts on what it returns, so
-//! every policy decision can be replayed in a unit test. [`farm`] is that caller: it talks to the workers over
-//! gRPC, ships blobs, validates strips and assembles the image. [`fleet`] finds the workers: a host list, an
-//! address list, worker processes on loopback, or a worker server inside this process (the default, so a
-//! render on one machine takes the same path as one on many). [`prepared_cache`] keeps prepared blobs on disk
-//! for the next render of an unchanged scene. [`sweep`] charts error against time.
+//! every policy decision can be replayed in a unit test. [`farm`] is that caller: its event loop owns the
+//! scheduler, validates strips and assembles the image. [`session`] is one worker's side of the wire: connect,
+//! hello, blob upload in chunks, strip fetch, and the classification of a failed strip. [`job`] is what a render
+//! ships (the blobs and frame of a prepared scene, prepared through the cache) and what an interrupted one
+//! leaves for `--resume`. [`fleet`] finds the workers: a host list, an address list, worker processes on
+//! loopback, or a worker server inside this process (the default, so a render on one machine takes the same
+//! path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of an unchanged
+//! scene. [`report`] is what the user reads: warnings during the render, the worker table and the summary line.
+//! [`sweep`] charts error against time. [`overrides`] turns the
+//! flags that override scene settings, and the sweep's budgets, into the `KEY=VALUE` pairs of `--set`. [`cli`] holds the command line's arguments and [`commands`] runs them.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod cli;
+pub mod commands;
 pub mod farm;
 pub mod fleet;
+pub mod job;
+pub mod overrides;
 pub mod prepared_cache;
+pub mod report;
 pub mod scheduler;
+pub mod session;
 pub mod sweep;

@@ -9,10 +9,13 @@
 //!
 //! The camera is in neither: it travels in the frame. A changed input changes a key, and another build has
 //! another build id, so a stale entry is never read; it just ages out. Each file holds the BLAKE3 hash of its
-//! payload before the payload, and a file that does not match is deleted and rebuilt. Files are written under a
-//! temporary name and renamed, and the folder is trimmed to its cap, oldest first.
+//! payload before the payload, and a file that does not match is deleted and rebuilt. The folder is a
+//! [`DiskStore`]: files are written under a temporary name and renamed, and the folder is trimmed to its cap,
+//! least recently used first.
 
+use photon_core::codec::CodecError;
 use photon_core::scene::{Object, Scene};
+use photon_worker::disk_store::{DiskStore, DiskStoreError, Integrity};
 use std::path::{Path, PathBuf};
 
 /// Which cache entries a render used.
@@ -24,10 +27,25 @@ pub struct Hits {
     pub photons: bool,
 }
 
+/// Why the cache cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum PreparedCacheError {
+    /// Its folder cannot be created.
+    #[error(transparent)]
+    Store(#[from] DiskStoreError),
+    /// A part of the scene cannot be encoded for hashing.
+    #[error("hashing the scene's {what}: {cause}")]
+    Hash {
+        /// Which part.
+        what: &'static str,
+        /// The encoder's error.
+        cause: CodecError,
+    },
+}
+
 /// A folder of prepared blobs.
 pub struct PreparedCache {
-    dir: PathBuf,
-    cap: u64,
+    store: DiskStore,
 }
 
 /// The cache keys of a scene.
@@ -40,9 +58,8 @@ pub struct Keys {
 
 impl PreparedCache {
     /// The cache in `dir`, created if missing, trimmed to `cap` bytes.
-    pub fn open(dir: PathBuf, cap: u64) -> Result<Self, String> {
-        std::fs::create_dir_all(&dir).map_err(|e| format!("cannot create the cache folder {}: {e}", dir.display()))?;
-        Ok(Self { dir, cap })
+    pub fn open(dir: PathBuf, cap: u64) -> Result<Self, PreparedCacheError> {
+        Ok(Self { store: DiskStore::open(dir, cap, &["scene", "photons"], Integrity::ChecksumHeader)? })
     }
 
     /// The default folder: `$PHOTON_CACHE_DIR`, else `$XDG_CACHE_HOME/photon`, else `$HOME/.cache/photon`.
@@ -54,9 +71,9 @@ impl PreparedCache {
     }
 
     /// The keys of `scene`, reading every file it references.
-    pub fn keys(scene: &Scene) -> Result<Keys, String> {
-        let enc = |what: &str, r: Result<Vec<u8>, photon_core::codec::CodecError>| {
-            r.map_err(|e| format!("hashing the scene's {what}: {e}"))
+    pub fn keys(scene: &Scene) -> Result<Keys, PreparedCacheError> {
+        let enc = |what: &'static str, r: Result<Vec<u8>, CodecError>| {
+            r.map_err(|cause| PreparedCacheError::Hash { what, cause })
         };
         let mut h = photon_proto::Hasher::new();
         h.update(photon_proto::BUILD_ID.as_bytes());
@@ -83,72 +100,36 @@ impl PreparedCache {
         Ok(Keys { scene: scene_key, photons: h.finalize().to_hex().to_string() })
     }
 
-    fn path(&self, key: &str, kind: &str) -> PathBuf {
-        self.dir.join(format!("{key}.{kind}"))
+    fn name(key: &str, kind: &str) -> String {
+        format!("{key}.{kind}")
     }
 
     /// The cached payload, if present and intact.
     pub fn load(&self, key: &str, kind: &str) -> Option<Vec<u8>> {
-        let path = self.path(key, kind);
-        let mut bytes = std::fs::read(&path).ok()?;
-        if bytes.len() < 32 || bytes[..32] != photon_proto::checksum(&bytes[32..]) {
-            tracing::warn!("{} is damaged; rebuilding it", path.display());
-            let _ = std::fs::remove_file(&path);
-            return None;
+        let name = Self::name(key, kind);
+        match self.store.read(&name) {
+            Ok(bytes) => {
+                // Mark it used, so trimming removes the least recently used first.
+                self.store.touch(&name);
+                bytes
+            }
+            Err(_) => {
+                tracing::warn!("{} is damaged; rebuilding it", self.store.path(&name).display());
+                None
+            }
         }
-        // Mark it used, so trimming removes the least recently used first.
-        if let Ok(f) = std::fs::File::options().append(true).open(&path) {
-            let _ = f.set_modified(std::time::SystemTime::now());
-        }
-        Some(bytes.split_off(32))
     }
 
     /// Stores a payload; a failure only costs the next render a rebuild, so it is logged, not returned.
     pub fn store(&self, key: &str, kind: &str, payload: &[u8]) {
-        if let Err(e) = self.try_store(key, kind, payload) {
-            tracing::warn!("cannot write the prepared cache in {}: {e}", self.dir.display());
+        if let Err(e) = self.store.write(&Self::name(key, kind), payload) {
+            tracing::warn!("cannot write the prepared cache in {}: {e}", self.store.dir().display());
         }
-    }
-
-    fn try_store(&self, key: &str, kind: &str, payload: &[u8]) -> std::io::Result<()> {
-        if payload.len() as u64 + 32 > self.cap {
-            return Ok(());
-        }
-        let tmp = self.dir.join(format!("{key}.{kind}.tmp-{}", std::process::id()));
-        let mut bytes = Vec::with_capacity(payload.len() + 32);
-        bytes.extend_from_slice(&photon_proto::checksum(payload));
-        bytes.extend_from_slice(payload);
-        std::fs::write(&tmp, &bytes)?;
-        std::fs::rename(&tmp, self.path(key, kind))?;
-        self.trim()
-    }
-
-    fn trim(&self) -> std::io::Result<()> {
-        let mut files = Vec::new();
-        for entry in std::fs::read_dir(&self.dir)? {
-            let entry = entry?;
-            let name = entry.file_name();
-            let name = name.to_string_lossy();
-            if name.ends_with(".scene") || name.ends_with(".photons") {
-                let meta = entry.metadata()?;
-                files.push((meta.modified()?, meta.len(), entry.path()));
-            }
-        }
-        let mut total: u64 = files.iter().map(|f| f.1).sum();
-        files.sort();
-        for (_, len, path) in files {
-            if total <= self.cap {
-                break;
-            }
-            std::fs::remove_file(&path)?;
-            total -= len;
-        }
-        Ok(())
     }
 
     /// The folder.
     pub fn dir(&self) -> &Path {
-        &self.dir
+        self.store.dir()
     }
 }
 

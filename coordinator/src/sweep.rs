@@ -2,16 +2,17 @@
 //! reference, and summarise the curves of relative MSE against wall time.
 //!
 //! The pieces here are the ones worth testing without a renderer: how a budget multiplier becomes a method's
-//! setting ([`apply_budget`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
+//! setting ([`budget`], as `--set` pairs through [`crate::overrides`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
 //! for the equal-time and equal-error tables ([`error_at`], [`time_to`]), the CSV, and the chart
 //! ([`draw_charts`]). Renders go through the workers, as `render`'s do ([`render_timed`]).
 
+use crate::overrides::Setting;
 use anyhow::{Context, Result};
 use photon_core::image_io::Image;
 use photon_core::light::Light;
 use photon_core::material::Material;
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, RenderSettings, Scene};
+use photon_core::scene::{Integrator, Scene};
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
@@ -70,35 +71,33 @@ pub struct Budget {
     pub value: u64,
 }
 
-/// Sets `settings` to render with `method` at budget multiplier `b`: `path`/`direct` at `BASE_SPP·b` spp,
+/// The settings that render with `method` at budget multiplier `b`: `path`/`direct` at `BASE_SPP·b` spp,
 /// `photon-map` with `BASE_PHOTONS·b` global photons (k unchanged), `final-gather` with `BASE_PHOTONS·b` global
 /// and caustic photons, `progressive` with `BASE_PASSES·b` passes. The photon methods render
 /// [`PHOTON_METHOD_SPP`] samples per pixel at every budget. Fails when a value overflows `u32`.
-pub fn apply_budget(settings: &mut RenderSettings, method: Integrator, b: u32) -> Result<Budget> {
+pub fn budget(method: Integrator, b: u32) -> Result<(Vec<Setting>, Budget)> {
     let times = |base: u32| base.checked_mul(b).with_context(|| format!("budget {b} × {base} overflows for {method}"));
-    settings.integrator = method;
-    let budget = match method {
+    let grown = |parameter, value: u32| Budget { parameter, value: u64::from(value) };
+    let (settings, budget) = match method {
         Integrator::Path | Integrator::Direct => {
-            settings.spp = times(BASE_SPP)?;
-            Budget { parameter: "spp", value: u64::from(settings.spp) }
+            let spp = times(BASE_SPP)?;
+            (vec![Setting::Spp(spp)], grown("spp", spp))
         }
         Integrator::PhotonMap => {
-            settings.spp = PHOTON_METHOD_SPP;
-            settings.photons.global = times(BASE_PHOTONS)?;
-            Budget { parameter: "photons", value: u64::from(settings.photons.global) }
+            let n = times(BASE_PHOTONS)?;
+            (vec![Setting::Spp(PHOTON_METHOD_SPP), Setting::GlobalPhotons(n)], grown("photons", n))
         }
         Integrator::FinalGather => {
-            settings.spp = PHOTON_METHOD_SPP;
-            settings.photons.global = times(BASE_PHOTONS)?;
-            settings.photons.caustic = settings.photons.global;
-            Budget { parameter: "photons", value: u64::from(settings.photons.global) }
+            let n = times(BASE_PHOTONS)?;
+            let settings = vec![Setting::Spp(PHOTON_METHOD_SPP), Setting::GlobalPhotons(n), Setting::CausticPhotons(n)];
+            (settings, grown("photons", n))
         }
         Integrator::Progressive => {
-            settings.photons.passes = times(BASE_PASSES)?;
-            Budget { parameter: "passes", value: u64::from(settings.photons.passes) }
+            let passes = times(BASE_PASSES)?;
+            (vec![Setting::Passes(passes)], grown("passes", passes))
         }
     };
-    Ok(budget)
+    Ok(([vec![Setting::Integrator(method)], settings].concat(), budget))
 }
 
 /// An image and the wall time it took.
@@ -118,14 +117,14 @@ pub struct Timed {
 pub async fn render_timed(
     scene: &Scene,
     scene_path: &Path,
-    addrs: &[crate::farm::WorkerAddr],
+    addrs: &[crate::session::WorkerAddr],
     options: crate::farm::Options,
 ) -> Result<Timed> {
     let t0 = Instant::now();
     let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
     let (width, height) = (prep.camera.width, prep.camera.height);
     let (scene_blob, photons, frame) = (prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?);
-    let job = crate::farm::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
+    let job = crate::job::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
     drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
@@ -447,24 +446,41 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+    use photon_core::scene::RenderSettings;
 
     fn curve(points: &[(f64, f64)]) -> Curve {
         Curve { method: Integrator::Path, points: points.to_vec() }
     }
 
+    /// A scene file with default render settings, loaded with the pairs of `method` at budget `b`.
+    fn with_budget(dir: &Path, method: Integrator, b: u32) -> (RenderSettings, Budget) {
+        let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nwidth = 8\nheight = 8\n\
+                    [materials.white]\ntype = \"lambert\"\n\
+                    [[objects]]\ntype = \"sphere\"\ncenter = [0.0, 1.0, 0.0]\nradius = 0.5\nmaterial = \"white\"\n\
+                    [[lights]]\ntype = \"point\"\nposition = [0.0, 2.0, 0.0]\npower = [10.0, 10.0, 10.0]\n";
+        std::fs::write(dir.join("s.toml"), text).unwrap();
+        let (settings, budget) = super::budget(method, b).unwrap();
+        let scene = Scene::load_with(&dir.join("s.toml"), &crate::overrides::pairs(&[], &settings)).unwrap();
+        (scene.render, budget)
+    }
+
     #[test]
     fn budgets_grow_the_right_setting() {
-        let mut s = RenderSettings::default();
-        let k = s.photons.k;
-        assert_eq!(apply_budget(&mut s, Integrator::Path, 8).unwrap(), Budget { parameter: "spp", value: 32 });
+        let dir = std::env::temp_dir().join(format!("photon-sweep-budget-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let k = RenderSettings::default().photons.k;
+        let (s, b) = with_budget(&dir, Integrator::Path, 8);
+        assert_eq!(b, Budget { parameter: "spp", value: 32 });
         assert_eq!(s.spp, 32);
-        let b = apply_budget(&mut s, Integrator::PhotonMap, 4).unwrap();
+        let (s, b) = with_budget(&dir, Integrator::PhotonMap, 4);
         assert_eq!((b.value, s.photons.global, s.photons.k, s.spp), (100_000, 100_000, k, PHOTON_METHOD_SPP));
-        apply_budget(&mut s, Integrator::FinalGather, 2).unwrap();
+        let (s, _) = with_budget(&dir, Integrator::FinalGather, 2);
         assert_eq!((s.photons.global, s.photons.caustic), (50_000, 50_000));
-        assert_eq!(apply_budget(&mut s, Integrator::Progressive, 16).unwrap().value, 64);
+        let (s, b) = with_budget(&dir, Integrator::Progressive, 16);
+        assert_eq!((b.value, s.photons.passes), (64, 64));
         assert_eq!(s.integrator, Integrator::Progressive);
-        assert!(apply_budget(&mut s, Integrator::Path, u32::MAX).is_err());
+        assert!(super::budget(Integrator::Path, u32::MAX).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

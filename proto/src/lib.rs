@@ -71,17 +71,41 @@ pub fn bearer(token: &str) -> String {
     format!("Bearer {token}")
 }
 
+/// Why a token file cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum TokenError {
+    /// The file cannot be read.
+    #[error("cannot read the token file {}: {cause}", path.display())]
+    Read {
+        /// The file.
+        path: std::path::PathBuf,
+        /// The reason.
+        cause: std::io::Error,
+    },
+    /// The file holds only white space.
+    #[error("the token file {} is empty", path.display())]
+    Empty {
+        /// The file.
+        path: std::path::PathBuf,
+    },
+    /// The token has a space or a character outside printable ASCII.
+    #[error("the token in {} must be printable ASCII without spaces", path.display())]
+    NotPrintable {
+        /// The file.
+        path: std::path::PathBuf,
+    },
+}
+
 /// Reads a shared token from a file: its content without surrounding white space; it must not be empty and must
 /// be printable ASCII (it travels in an HTTP/2 header).
-pub fn read_token(path: &std::path::Path) -> Result<String, String> {
-    let text =
-        std::fs::read_to_string(path).map_err(|e| format!("cannot read the token file {}: {e}", path.display()))?;
+pub fn read_token(path: &std::path::Path) -> Result<String, TokenError> {
+    let text = std::fs::read_to_string(path).map_err(|cause| TokenError::Read { path: path.into(), cause })?;
     let token = text.trim();
     if token.is_empty() {
-        return Err(format!("the token file {} is empty", path.display()));
+        return Err(TokenError::Empty { path: path.into() });
     }
     if !token.bytes().all(|b| b.is_ascii_graphic()) {
-        return Err(format!("the token in {} must be printable ASCII without spaces", path.display()));
+        return Err(TokenError::NotPrintable { path: path.into() });
     }
     Ok(token.to_owned())
 }
@@ -171,6 +195,22 @@ mod tests {
         assert!(tokens_match("s3cret", "s3cret"));
         assert!(!tokens_match("s3cret", "s3cres"));
         assert!(!tokens_match("s3cret", "s3cret!"));
+    }
+
+    #[test]
+    fn token_files_are_checked() {
+        let dir = std::env::temp_dir().join(format!("photon-token-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("token");
+        std::fs::write(&p, "  s3cret\n").unwrap();
+        assert_eq!(read_token(&p).unwrap(), "s3cret");
+        std::fs::write(&p, " \n").unwrap();
+        assert!(matches!(read_token(&p), Err(TokenError::Empty { .. })));
+        std::fs::write(&p, "s3 cret").unwrap();
+        let e = read_token(&p).unwrap_err();
+        assert!(e.to_string().contains("must be printable ASCII without spaces"), "{e}");
+        assert!(matches!(read_token(&dir.join("missing")), Err(TokenError::Read { .. })));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

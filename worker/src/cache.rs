@@ -1,17 +1,27 @@
 //! The worker's content-addressed blob cache: in memory up to a byte budget, least recently used out first, and
 //! optionally on disk up to a size cap, so a restarted worker need not be sent its blobs again.
 //!
-//! Blobs are immutable and named by the hash of their bytes, so a cached copy is never stale. A file read back
-//! from disk is hashed again before use: a damaged file is deleted, not rendered from.
+//! Blobs are immutable and named by the hash of their bytes, so a cached copy is never stale. The disk half is a
+//! [`DiskStore`] of `ID.blob` files named by that hash: a file read back is hashed again before use, and a
+//! damaged one is deleted, not rendered from.
 
+use crate::disk_store::{DiskStore, DiskStoreError, Integrity};
 use std::collections::HashMap;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex};
 
+/// The extension of blob files on disk.
+const EXTENSION: &str = "blob";
+
+/// The file of a blob on disk.
+fn file_name(id: &str) -> String {
+    format!("{id}.{EXTENSION}")
+}
+
 /// Blobs by id.
 pub struct BlobCache {
     memory: Mutex<Memory>,
-    disk: Option<Disk>,
+    disk: Option<DiskStore>,
 }
 
 struct Memory {
@@ -22,20 +32,11 @@ struct Memory {
     clock: u64,
 }
 
-struct Disk {
-    dir: PathBuf,
-    cap: u64,
-}
-
 impl BlobCache {
     /// A cache of `memory_budget` bytes in memory and, when given, a folder capped at the given bytes.
-    pub fn new(memory_budget: u64, disk: Option<(PathBuf, u64)>) -> Result<Self, String> {
+    pub fn new(memory_budget: u64, disk: Option<(PathBuf, u64)>) -> Result<Self, DiskStoreError> {
         let disk = match disk {
-            Some((dir, cap)) => {
-                std::fs::create_dir_all(&dir)
-                    .map_err(|e| format!("cannot create the cache folder {}: {e}", dir.display()))?;
-                Some(Disk { dir, cap })
-            }
+            Some((dir, cap)) => Some(DiskStore::open(dir, cap, &[EXTENSION], Integrity::NamedByHash)?),
             None => None,
         };
         let memory = Memory { budget: memory_budget, bytes: 0, blobs: HashMap::new(), clock: 0 };
@@ -49,7 +50,7 @@ impl BlobCache {
 
     /// Whether the blob is held, in memory or on disk.
     pub fn contains(&self, id: &str) -> bool {
-        self.memory().blobs.contains_key(id) || self.disk.as_ref().is_some_and(|d| d.path(id).is_file())
+        self.memory().blobs.contains_key(id) || self.disk.as_ref().is_some_and(|d| d.contains(&file_name(id)))
     }
 
     /// The blob, from memory or (checked again) from disk.
@@ -63,13 +64,13 @@ impl BlobCache {
                 return Some(blob.clone());
             }
         }
-        let disk = self.disk.as_ref()?;
-        let bytes = std::fs::read(disk.path(id)).ok()?;
-        if photon_proto::blob_id(&bytes) != id {
-            tracing::warn!(id, "cached blob on disk is damaged; deleting it");
-            let _ = std::fs::remove_file(disk.path(id));
-            return None;
-        }
+        let bytes = match self.disk.as_ref()?.read(&file_name(id)) {
+            Ok(bytes) => bytes?,
+            Err(_) => {
+                tracing::warn!(id, "cached blob on disk is damaged; deleting it");
+                return None;
+            }
+        };
         let blob = Arc::new(bytes);
         self.insert_memory(id.to_owned(), blob.clone());
         Some(blob)
@@ -78,7 +79,7 @@ impl BlobCache {
     /// Stores a verified blob (its id must be the hash of its bytes).
     pub fn insert(&self, id: String, blob: Arc<Vec<u8>>) {
         if let Some(disk) = &self.disk
-            && let Err(e) = disk.store(&id, &blob)
+            && let Err(e) = disk.write(&file_name(&id), &blob)
         {
             tracing::warn!(id, "cannot keep the blob on disk: {e}");
         }
@@ -110,49 +111,6 @@ impl BlobCache {
     /// Bytes held in memory.
     pub fn memory_bytes(&self) -> u64 {
         self.memory().bytes
-    }
-}
-
-impl Disk {
-    fn path(&self, id: &str) -> PathBuf {
-        self.dir.join(format!("{id}.blob"))
-    }
-
-    /// Writes the blob (to a temporary name, then renamed, so a crash leaves no half file under the id) and
-    /// removes the oldest files until the folder is under its cap.
-    fn store(&self, id: &str, bytes: &[u8]) -> std::io::Result<()> {
-        if bytes.len() as u64 > self.cap {
-            return Ok(());
-        }
-        let tmp = self.dir.join(format!("{id}.tmp-{}", std::process::id()));
-        std::fs::write(&tmp, bytes)?;
-        std::fs::rename(&tmp, self.path(id))?;
-        self.trim(id)
-    }
-
-    fn trim(&self, keep: &str) -> std::io::Result<()> {
-        let mut files: Vec<(std::time::SystemTime, u64, PathBuf)> = Vec::new();
-        for entry in std::fs::read_dir(&self.dir)? {
-            let entry = entry?;
-            let path = entry.path();
-            if path.extension().is_some_and(|e| e == "blob") {
-                let meta = entry.metadata()?;
-                files.push((meta.modified()?, meta.len(), path));
-            }
-        }
-        let mut total: u64 = files.iter().map(|f| f.1).sum();
-        files.sort();
-        for (_, len, path) in files {
-            if total <= self.cap {
-                break;
-            }
-            if path.file_stem().is_some_and(|s| s == keep) {
-                continue;
-            }
-            std::fs::remove_file(&path)?;
-            total -= len;
-        }
-        Ok(())
     }
 }
 

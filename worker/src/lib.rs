@@ -15,6 +15,7 @@
 #![warn(missing_docs)]
 
 pub mod cache;
+pub mod disk_store;
 
 use cache::BlobCache;
 use photon_core::prepare::Prepared;
@@ -113,16 +114,27 @@ pub struct Worker {
     corrupt_left: Arc<AtomicU32>,
 }
 
+/// Why a worker cannot start.
+#[derive(Debug, thiserror::Error)]
+pub enum WorkerError {
+    /// The render thread pool cannot be built.
+    #[error("cannot start the render threads: {0}")]
+    Threads(rayon::ThreadPoolBuildError),
+    /// The blob cache cannot be opened.
+    #[error(transparent)]
+    Cache(#[from] disk_store::DiskStoreError),
+}
+
 impl Worker {
     const JOBS_KEPT: usize = 2;
 
     /// A worker with `config`; starts its thread pool and opens its disk cache.
-    pub fn new(config: Config) -> Result<Self, String> {
+    pub fn new(config: Config) -> Result<Self, WorkerError> {
         let mut pool = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("photon-render-{i}"));
         if let Some(n) = config.threads {
             pool = pool.num_threads(n);
         }
-        let pool = pool.build().map_err(|e| format!("cannot start the render threads: {e}"))?;
+        let pool = pool.build().map_err(WorkerError::Threads)?;
         let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
         let corrupt = match config.fault {
             Fault::CorruptPixels(n) => n,

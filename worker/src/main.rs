@@ -71,7 +71,7 @@ fn run(cli: Cli) -> Result<()> {
     if cli.threads == Some(0) {
         bail!("--threads must be at least 1");
     }
-    let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose().map_err(anyhow::Error::msg)?;
+    let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose()?;
     let read =
         |p: &PathBuf, what: &str| std::fs::read(p).with_context(|| format!("reading the {what} {}", p.display()));
     let tls = match (&cli.tls_cert, &cli.tls_key) {
@@ -100,7 +100,7 @@ fn run(cli: Cli) -> Result<()> {
         config.fault = Fault::Delay(ms);
     }
     let config_tls_off = config.tls.is_none();
-    let worker = Worker::new(config).map_err(anyhow::Error::msg)?;
+    let worker = Worker::new(config)?;
     let threads = worker.threads();
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)

@@ -1,0 +1,288 @@
+//! The command line's arguments: one struct per command, the farm flags they share, and the parsers of sizes
+//! and regions. [`crate::commands`] runs them.
+
+use crate::fleet;
+use crate::overrides::Setting;
+use anyhow::{Context, Result, bail};
+use clap::{Parser, Subcommand};
+use photon_core::metrics::Region;
+use photon_core::scene::Integrator;
+use std::path::PathBuf;
+
+/// A distributed photon-mapping renderer.
+#[derive(Parser, Debug)]
+#[command(name = "photon-coordinator", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub(crate) command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub(crate) enum Command {
+    /// Render a scene file to an image.
+    Render(RenderArgs),
+    /// Measure an image's error against a reference (RMSE, relative MSE, relative error, bias).
+    Compare(CompareArgs),
+    /// Render a reference EXR: the path tracer at many samples, or progressive photon mapping at many passes
+    /// when the scene has point-light caustics. Renders on workers like `render` (in-process by default).
+    Reference(ReferenceArgs),
+    /// Render with several methods at growing budgets, measure each image against a reference, and write
+    /// sweep.csv, sweep.svg and sweep.png with equal-time and equal-error tables. Renders run one after another
+    /// on workers like `render` (in-process by default; `--workers`, `--hosts` or `--local` for others).
+    Sweep(SweepArgs),
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct RenderArgs {
+    /// The scene file (TOML).
+    pub(crate) scene: PathBuf,
+    /// Output image; the format comes from the extension: .png, .exr (linear), .ppm or .bmp.
+    #[arg(short, long, default_value = "out.png")]
+    pub(crate) output: PathBuf,
+    /// Samples per pixel (overrides the scene's `render.spp`).
+    #[arg(long)]
+    pub(crate) spp: Option<u32>,
+    /// Method: `path`, `direct`, `photon-map`, `final-gather` or `progressive` (overrides `render.integrator`).
+    #[arg(long)]
+    pub(crate) integrator: Option<Integrator>,
+    /// Seed (overrides the scene's `render.seed`).
+    #[arg(long)]
+    pub(crate) seed: Option<u64>,
+    /// Image width and height in pixels, e.g. `256x256` (overrides the scene's camera).
+    #[arg(long, value_parser = parse_size)]
+    pub(crate) size: Option<(u32, u32)>,
+    /// Photon paths per map, or per progressive pass (overrides `render.photons.global`, `.caustic` and
+    /// `.pass_photons`).
+    #[arg(long)]
+    pub(crate) photons: Option<u32>,
+    /// Progressive photon-mapping passes (overrides `render.photons.passes`).
+    #[arg(long)]
+    pub(crate) passes: Option<u32>,
+    /// Exposure in stops for 8-bit outputs (overrides the scene's `render.exposure`).
+    #[arg(long)]
+    pub(crate) exposure: Option<f32>,
+    /// Override a scene setting, e.g. `--set render.photons.kernel=box` or `--set camera.fov=30`; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub(crate) set: Vec<String>,
+    /// No progress bar.
+    #[arg(long, short)]
+    pub(crate) quiet: bool,
+    #[command(flatten)]
+    pub(crate) farm: FarmArgs,
+    /// Continue an interrupted render from the partial file it left (`OUTPUT.partial`).
+    #[arg(long, value_name = "FILE")]
+    pub(crate) resume: Option<PathBuf>,
+    /// Rows per strip (default: about 16 strips per worker, at most 64 rows).
+    #[arg(long, value_name = "N")]
+    pub(crate) rows_per_strip: Option<u32>,
+    /// Folder of prepared blobs reused by later renders of an unchanged scene (default: $PHOTON_CACHE_DIR, else
+    /// $XDG_CACHE_HOME/photon, else ~/.cache/photon).
+    #[arg(long, value_name = "DIR")]
+    pub(crate) cache_dir: Option<PathBuf>,
+    /// Size cap of the prepared-blob cache in MiB (oldest entries out first).
+    #[arg(long, value_name = "MIB", default_value_t = 4096)]
+    pub(crate) cache_mib: u64,
+    /// Neither read nor write the prepared-blob cache.
+    #[arg(long, conflicts_with = "cache_dir")]
+    pub(crate) no_cache: bool,
+}
+
+impl RenderArgs {
+    /// The settings the flags override, checked as `--set` would not (a count of 0 names the flag).
+    pub(crate) fn settings(&self) -> Result<Vec<Setting>> {
+        let at_least_1 = |flag: &str, v: Option<u32>| match v {
+            Some(0) => bail!("--{flag} must be at least 1"),
+            _ => Ok(v),
+        };
+        let (spp, photons) = (at_least_1("spp", self.spp)?, at_least_1("photons", self.photons)?);
+        let passes = at_least_1("passes", self.passes)?;
+        let settings = [
+            self.size.map(|(w, h)| Setting::Size(w, h)),
+            spp.map(Setting::Spp),
+            self.integrator.map(Setting::Integrator),
+            self.seed.map(Setting::Seed),
+            self.exposure.map(Setting::Exposure),
+            photons.map(Setting::Photons),
+            passes.map(Setting::Passes),
+        ];
+        Ok(settings.into_iter().flatten().collect())
+    }
+}
+
+/// Where to render: with none of `--hosts`, `--workers` or `--local`, on a worker inside this process.
+#[derive(clap::Args, Debug, Clone)]
+pub(crate) struct FarmArgs {
+    /// Render on the workers of a host list (TOML: `[[worker]]` tables with `address` and an optional `name`).
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["workers", "local"])]
+    pub(crate) hosts: Option<PathBuf>,
+    /// Render on these workers, e.g. `lab-01:7878,lab-02:7878`; `dns:NAME:PORT` is every address NAME resolves
+    /// to (a Kubernetes headless Service: one per ready worker pod).
+    #[arg(long, value_name = "HOST:PORT,...", conflicts_with = "local")]
+    pub(crate) workers: Option<String>,
+    /// Start N `photon-worker` processes on loopback (sharing this machine's cores) and render on them.
+    #[arg(long, value_name = "N")]
+    pub(crate) local: Option<usize>,
+    /// A file holding the shared token the workers require.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) token_file: Option<PathBuf>,
+    /// Speak TLS to the workers, trusting only this PEM certificate authority (see deploy/tls/make-certs.sh).
+    #[arg(long, value_name = "FILE")]
+    pub(crate) tls_ca: Option<PathBuf>,
+    /// Threads on this machine, for preparing and for in-process or --local workers (default: all cores).
+    #[arg(long)]
+    pub(crate) threads: Option<usize>,
+}
+
+/// What the farm flags resolve to.
+pub(crate) struct Resolved {
+    pub(crate) spec: fleet::FleetSpec,
+    pub(crate) token: Option<String>,
+    pub(crate) tls_ca: Option<Vec<u8>>,
+}
+
+impl FarmArgs {
+    /// Checks the flags, sizes the thread pool and says which workers to use, which token to send and which
+    /// authority to trust.
+    pub(crate) fn resolve(&self) -> Result<Resolved> {
+        if let Some(t) = self.threads {
+            if t == 0 {
+                bail!("--threads must be at least 1");
+            }
+            rayon::ThreadPoolBuilder::new().num_threads(t).build_global().context("starting the thread pool")?;
+        }
+        if self.local == Some(0) {
+            bail!("--local must be at least 1");
+        }
+        let (spec, hosts_token, hosts_ca) = match (&self.hosts, &self.workers, self.local) {
+            (Some(path), _, _) => {
+                let h = fleet::read_hosts(path)?;
+                (fleet::FleetSpec::Remote(h.workers), h.token_file, h.tls_ca)
+            }
+            (None, Some(list), _) => (fleet::FleetSpec::Remote(fleet::parse_workers(list)?), None, None),
+            (None, None, Some(n)) => {
+                let threads = self.threads.unwrap_or_else(rayon::current_num_threads);
+                (fleet::FleetSpec::Local { n, threads, token_file: self.token_file.clone() }, None, None)
+            }
+            (None, None, None) => (fleet::FleetSpec::InProcess(self.threads), None, None),
+        };
+        let token_file = self.token_file.clone().or(hosts_token);
+        let token = token_file.as_deref().map(photon_proto::read_token).transpose()?;
+        let tls_ca = match self.tls_ca.clone().or(hosts_ca) {
+            Some(p) => Some(std::fs::read(&p).with_context(|| format!("reading the TLS authority {}", p.display()))?),
+            None => None,
+        };
+        Ok(Resolved { spec, token, tls_ca })
+    }
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct CompareArgs {
+    /// The image to measure: EXR for linear values (8-bit formats are decoded from sRGB).
+    pub(crate) image: PathBuf,
+    /// The reference image, the same size.
+    pub(crate) reference: PathBuf,
+    /// Measure the bias over the pixels `X0,Y0,X1,Y1`, X1 and Y1 exclusive (default: the whole image).
+    #[arg(long, value_parser = parse_region, value_name = "X0,Y0,X1,Y1")]
+    pub(crate) region: Option<Region>,
+    /// Write a false-colour map of per-pixel relative error (0 dark, 1 or more bright), e.g. `err.png`.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) error_image: Option<PathBuf>,
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct ReferenceArgs {
+    /// The scene file (TOML).
+    pub(crate) scene: PathBuf,
+    /// Output image; must be .exr (linear values, for `compare` and `sweep`).
+    #[arg(short, long)]
+    pub(crate) output: PathBuf,
+    /// Samples per pixel when the path tracer renders the reference.
+    #[arg(long, default_value_t = 4096)]
+    pub(crate) spp: u32,
+    /// Passes when progressive photon mapping renders the reference.
+    #[arg(long, default_value_t = 512)]
+    pub(crate) passes: u32,
+    /// Image width and height in pixels, e.g. `96x96` (overrides the scene's camera).
+    #[arg(long, value_parser = parse_size)]
+    pub(crate) size: Option<(u32, u32)>,
+    /// Seed of the reference; keep it different from the seed of the images it measures (the scene's
+    /// `render.seed`, 1 by default), or their noise is correlated and the error looks smaller than it is.
+    #[arg(long, default_value_t = 0x5EED)]
+    pub(crate) seed: u64,
+    /// Override a scene setting, e.g. `--set render.photons.pass_photons=50000`; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub(crate) set: Vec<String>,
+    #[command(flatten)]
+    pub(crate) farm: FarmArgs,
+}
+
+#[derive(clap::Args, Debug)]
+pub(crate) struct SweepArgs {
+    /// The scene file (TOML).
+    pub(crate) scene: PathBuf,
+    /// The reference image (EXR), e.g. from `photon-coordinator reference`.
+    #[arg(long)]
+    pub(crate) reference: PathBuf,
+    /// Methods, comma-separated: `path`, `direct`, `photon-map`, `final-gather`, `progressive`.
+    #[arg(long, value_delimiter = ',', default_value = "path,photon-map,final-gather,progressive")]
+    pub(crate) methods: Vec<Integrator>,
+    /// Budget multipliers b, comma-separated: path/direct render 4·b spp; photon-map traces 25 000·b global
+    /// photons (k fixed, 2 spp); final-gather 25 000·b global and caustic photons (2 spp); progressive 4·b passes.
+    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8")]
+    pub(crate) budget: Vec<u32>,
+    /// Image width and height, e.g. `96x96`; must match the reference (default: the reference's size).
+    #[arg(long, value_parser = parse_size)]
+    pub(crate) size: Option<(u32, u32)>,
+    /// Folder for sweep.csv, sweep.svg and sweep.png (created when missing).
+    #[arg(long, default_value = ".")]
+    pub(crate) out: PathBuf,
+    /// Override a scene setting for every render, e.g. `--set render.photons.pass_photons=20000`; repeatable.
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub(crate) set: Vec<String>,
+    #[command(flatten)]
+    pub(crate) farm: FarmArgs,
+}
+
+/// Why a value of `--region` or `--size` is not one.
+#[derive(Debug, thiserror::Error)]
+pub enum ValueError {
+    /// Not four non-negative integers.
+    #[error("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{0}`")]
+    RegionNumbers(String),
+    /// An empty region.
+    #[error("expected X0 < X1 and Y0 < Y1 (X1 and Y1 exclusive), found `{0}`")]
+    RegionOrder(String),
+    /// Not four numbers.
+    #[error("expected four numbers X0,Y0,X1,Y1, found `{0}`")]
+    RegionCount(String),
+    /// Not `WIDTHxHEIGHT`.
+    #[error("expected WIDTHxHEIGHT, found `{0}`")]
+    SizeForm(String),
+    /// A size of 0 or above 65536.
+    #[error("expected WIDTHxHEIGHT with sizes in 1..=65536, found `{0}`")]
+    SizeRange(String),
+}
+
+/// A region `X0,Y0,X1,Y1` of `--region`.
+pub fn parse_region(s: &str) -> Result<Region, ValueError> {
+    let v: Vec<u32> = s
+        .split(',')
+        .map(|p| p.trim().parse::<u32>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| ValueError::RegionNumbers(s.to_owned()))?;
+    match v[..] {
+        [x0, y0, x1, y1] if x0 < x1 && y0 < y1 => Ok(Region { x0, y0, x1, y1 }),
+        [_, _, _, _] => Err(ValueError::RegionOrder(s.to_owned())),
+        _ => Err(ValueError::RegionCount(s.to_owned())),
+    }
+}
+
+/// A size `WIDTHxHEIGHT` of `--size`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), ValueError> {
+    let (w, h) = s.split_once('x').ok_or_else(|| ValueError::SizeForm(s.to_owned()))?;
+    let p = |v: &str| v.parse::<u32>().ok().filter(|&n| (1..=65_536).contains(&n));
+    match (p(w), p(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(ValueError::SizeRange(s.to_owned())),
+    }
+}

@@ -1,0 +1,288 @@
+//! The commands of the command line: `render`, `compare`, `reference` and `sweep`, each from its parsed
+//! arguments ([`crate::cli`]) to its output files and the lines it prints.
+
+use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
+use crate::farm::{self, FarmError};
+use crate::fleet;
+use crate::job::{Partial, partial_path, prepare_job};
+use crate::overrides::{self, Setting};
+use crate::prepared_cache::PreparedCache;
+use crate::report::{Summary, print_workers};
+use crate::sweep::{self, sig};
+use anyhow::{Context, Result, bail};
+use photon_core::image_io::{Format, Image};
+use photon_core::metrics::{self, Metrics};
+use photon_core::prepare::Prepared;
+use photon_core::scene::{Integrator, Scene};
+use std::path::Path;
+use std::time::Instant;
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Render(args) => render(args),
+        Command::Compare(args) => compare(args),
+        Command::Reference(args) => reference(args),
+        Command::Sweep(args) => sweep(args),
+    }
+}
+
+/// The async runtime of the farm: two threads are plenty for the network; rendering runs on rayon.
+fn runtime() -> Result<tokio::runtime::Runtime> {
+    tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .context("starting the async runtime")
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    Format::from_path(&args.output)?;
+    if args.rows_per_strip == Some(0) {
+        bail!("--rows-per-strip must be at least 1");
+    }
+    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
+    let t0 = Instant::now();
+    let scene = render_scene(&args)?;
+    let resume = args.resume.as_deref().map(Partial::read).transpose()?;
+    let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
+        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
+        _ => None,
+    };
+    let (job, hits) = prepare_job(&scene, &args.scene, cache.as_ref())?;
+    let (width, height) = (job.width, job.height);
+    let settings = scene.render.clone();
+    let prepare_s = t0.elapsed().as_secs_f64();
+    tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
+
+    let options = farm::Options {
+        token,
+        tls_ca,
+        rows_per_strip: args.rows_per_strip,
+        policy: Default::default(),
+        resume,
+        progress: !args.quiet,
+    };
+    let (outcome, in_process) = runtime()?.block_on(async {
+        let fleet = fleet::Fleet::start(&spec).await?;
+        let outcome = farm::render(&job, &fleet.addrs, options).await;
+        let in_process = fleet.is_in_process();
+        fleet.stop().await;
+        anyhow::Ok((outcome, in_process))
+    })?;
+    let mut outcome = match outcome {
+        Ok(o) => o,
+        Err(e) => return fail_keeping_partial(&args.output, e),
+    };
+    let t_assemble = Instant::now();
+    let image = Image { width, height, pixels: std::mem::take(&mut outcome.pixels) };
+    image.write(&args.output, settings.exposure)?;
+    if let Some(p) = &args.resume
+        && *p == partial_path(&args.output)
+    {
+        let _ = std::fs::remove_file(p);
+    }
+    let assemble_s = t_assemble.elapsed().as_secs_f64();
+    if !in_process {
+        print_workers(&outcome.workers);
+    }
+    let summary =
+        Summary { output: &args.output, size: (width, height), settings: &settings, prepare_s, assemble_s, hits };
+    println!("{}", summary.line(&outcome));
+    Ok(())
+}
+
+/// The scene of `render`: the file, its `--set` pairs, then the flags that override settings as more pairs.
+fn render_scene(args: &RenderArgs) -> Result<Scene> {
+    Ok(Scene::load_with(&args.scene, &overrides::pairs(&args.set, &args.settings()?))?)
+}
+
+/// Keeps the finished strips of a failed render in the partial file beside the output, and says how to resume.
+fn fail_keeping_partial(output: &Path, e: FarmError) -> Result<()> {
+    let Some(partial) = e.partial() else {
+        return Err(e.into());
+    };
+    let path = partial_path(output);
+    let done = partial.strips.len();
+    partial.write(&path)?;
+    if let FarmError::NoWorkers { workers, .. } | FarmError::Fatal { workers, .. } = &e {
+        print_workers(workers);
+    }
+    bail!(
+        "{e}\n{done} finished strips are in {}; continue with the same command and `--resume {}`",
+        path.display(),
+        path.display()
+    );
+}
+
+fn compare(args: CompareArgs) -> Result<()> {
+    if let Some(path) = &args.error_image {
+        Format::from_path(path)?;
+    }
+    let image = Image::read(&args.image)?;
+    let reference = Image::read(&args.reference)?;
+    let what = || format!("comparing {} with the reference {}", args.image.display(), args.reference.display());
+    let m = metrics::compare(&image, &reference, args.region).with_context(what)?;
+    println!("{} against {} ({}x{})", args.image.display(), args.reference.display(), image.width, image.height);
+    print_metrics(&m);
+    if let Some(path) = &args.error_image {
+        metrics::error_image(&image, &reference).with_context(what)?.write(path, 0.0)?;
+        println!("  {:<26}{}", "error image", path.display());
+    }
+    println!("{}", m.key_values());
+    Ok(())
+}
+
+fn reference(args: ReferenceArgs) -> Result<()> {
+    if Format::from_path(&args.output)? != Format::Exr {
+        bail!("the reference must be an .exr image (linear values), not {}", args.output.display());
+    }
+    if args.spp == 0 || args.passes == 0 {
+        bail!("--spp and --passes must be at least 1");
+    }
+    let size: Vec<Setting> = args.size.map(|(w, h)| Setting::Size(w, h)).into_iter().collect();
+    let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &size))?;
+    if args.seed == scene.render.seed {
+        eprintln!("warning: the reference seed equals the scene's render.seed: its noise will correlate with renders");
+    }
+    // Decide on the scene as it stands (lights and materials do not depend on the method).
+    let choice = sweep::choose_reference(&Prepared::new(&scene, &args.scene)?);
+    let budget = match choice.integrator {
+        Integrator::Progressive => Setting::Passes(args.passes),
+        _ => Setting::Spp(args.spp),
+    };
+    let settings = [size.as_slice(), &[Setting::Integrator(choice.integrator), Setting::Seed(args.seed), budget]];
+    let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
+    let budget = match budget {
+        Setting::Passes(n) => format!("{n} passes of {} photon paths", scene.render.photons.pass_photons),
+        _ => format!("{} spp", args.spp),
+    };
+    println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
+    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
+    let t = runtime()?.block_on(async {
+        let fleet = fleet::Fleet::start(&spec).await?;
+        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
+        let t = sweep::render_timed(&scene, &args.scene, &fleet.addrs, options).await;
+        fleet.stop().await;
+        t
+    })?;
+    t.image.write(&args.output, 0.0)?;
+    println!(
+        "{}: {}x{}, {}, {:.2} s render (+{:.2} s prepare)",
+        args.output.display(),
+        t.image.width,
+        t.image.height,
+        choice.integrator,
+        t.render_s,
+        t.prepare_s
+    );
+    Ok(())
+}
+
+fn sweep(args: SweepArgs) -> Result<()> {
+    if args.methods.is_empty() || args.budget.is_empty() {
+        bail!("--methods and --budget need at least one value each");
+    }
+    if args.budget.contains(&0) {
+        bail!("budget multipliers must be at least 1");
+    }
+    let reference = Image::read(&args.reference).with_context(|| format!("reading {}", args.reference.display()))?;
+    let (width, height) = args.size.unwrap_or((reference.width, reference.height));
+    if (width, height) != (reference.width, reference.height) {
+        bail!(
+            "--size {width}x{height} differs from the reference {} ({}x{})",
+            args.reference.display(),
+            reference.width,
+            reference.height
+        );
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
+    let base = overrides::pairs(&args.set, &[Setting::Size(width, height)]);
+    // Load once before starting workers, so that a broken scene fails at once.
+    Scene::load_with(&args.scene, &base)?;
+    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
+    let rows = runtime()?.block_on(async {
+        // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
+        let fleet = fleet::Fleet::start(&spec).await?;
+        let names: Vec<&str> = fleet.addrs.iter().map(|a| a.name.as_str()).collect();
+        println!(
+            "sweep of {} at {width}x{height} against {}: on {} ({} threads here)",
+            args.scene.display(),
+            args.reference.display(),
+            names.join(", "),
+            rayon::current_num_threads()
+        );
+        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
+        let rows = sweep_rows(&args, &base, &reference, &fleet.addrs, options).await;
+        fleet.stop().await;
+        rows
+    })?;
+    let csv_path = args.out.join("sweep.csv");
+    std::fs::write(&csv_path, sweep::csv(&rows)).with_context(|| format!("writing {}", csv_path.display()))?;
+    let curves = sweep::curves(&rows);
+    let name = args.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let title = format!("{name} {width}x{height}: relative MSE against wall time");
+    let (svg, png) = (args.out.join("sweep.svg"), args.out.join("sweep.png"));
+    sweep::draw_charts(&curves, &title, &svg, &png)?;
+    println!("\nequal time (relMSE, log-log interpolation):\n{}", sweep::equal_time_table(&curves));
+    println!("equal error (seconds, log-log interpolation; — out of the measured range):");
+    println!("{}", sweep::equal_error_table(&curves));
+    println!("wrote {}, {} and {} (the PNG has no text)", csv_path.display(), svg.display(), png.display());
+    Ok(())
+}
+
+/// Renders every (method, budget) of a sweep on the workers at `addrs` and measures it.
+async fn sweep_rows(
+    args: &SweepArgs,
+    base: &[String],
+    reference: &Image,
+    addrs: &[crate::session::WorkerAddr],
+    options: farm::Options,
+) -> Result<Vec<sweep::Row>> {
+    let mut rows = Vec::new();
+    for &method in &args.methods {
+        for &b in &args.budget {
+            let (settings, setting) = sweep::budget(method, b)?;
+            let scene = Scene::load_with(&args.scene, &overrides::pairs(base, &settings))?;
+            let t = sweep::render_timed(&scene, &args.scene, addrs, options.clone())
+                .await
+                .with_context(|| format!("rendering {method} at budget {b}"))?;
+            let m = metrics::compare(&t.image, reference, None)
+                .with_context(|| format!("measuring {method} at budget {b} against {}", args.reference.display()))?;
+            let row = sweep::Row {
+                method,
+                budget: b,
+                setting,
+                seconds: t.prepare_s + t.render_s,
+                rmse: m.rmse,
+                rel_mse: m.rel_mse,
+            };
+            println!(
+                "  {:<13} b={:<4} {:<16} {:>8.3} s  rmse {:<10} relMSE {}",
+                method.name(),
+                b,
+                format!("{}={}", row.setting.parameter, row.setting.value),
+                row.seconds,
+                sig(row.rmse),
+                sig(row.rel_mse)
+            );
+            rows.push(row);
+        }
+    }
+    Ok(rows)
+}
+
+/// The readable block of `compare`: one metric a line, labels in a column.
+fn print_metrics(m: &Metrics) {
+    let rel = m.rel_bias.map_or_else(|| "undefined: black reference".to_owned(), |b| format!("{:+.3} %", 100.0 * b));
+    let rows = [
+        ("RMSE".to_owned(), sig(m.rmse)),
+        (format!("relative MSE (eps {})", metrics::EPSILON), sig(m.rel_mse)),
+        ("mean abs. relative error".to_owned(), sig(m.mare)),
+        (format!("bias over {}", m.region), format!("{} ({rel})", sig(m.bias))),
+        ("largest difference".to_owned(), format!("{} ({} values differ)", sig(m.max_abs), m.differing)),
+    ];
+    for (label, value) in rows {
+        println!("  {label:<26}{value}");
+    }
+}

@@ -1,0 +1,211 @@
+//! A render job and what survives an interrupted one: the blobs and frame of a prepared scene ([`Job`],
+//! built by [`prepare_job`], through the prepared-blob cache when there is one), and the strips finished so far
+//! ([`Partial`]), kept in a partial file beside the output for `--resume`.
+
+use crate::prepared_cache::PreparedCacheError;
+use crate::prepared_cache::{self, PreparedCache};
+use photon_core::codec::CodecError;
+use photon_core::prepare::Prepared;
+use photon_core::scene::{Scene, SceneError};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Why a job cannot be prepared, or a partial file read or written. The messages without a cause in them are
+/// context: the cause is the error's source, so `{:#}` prints both.
+#[derive(Debug, thiserror::Error)]
+pub enum JobError {
+    /// The scene cannot be prepared (meshes, photon maps).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// The cache keys cannot be computed.
+    #[error(transparent)]
+    Cache(#[from] PreparedCacheError),
+    /// A blob cannot be encoded.
+    #[error("encoding the {0}")]
+    Encode(&'static str, #[source] CodecError),
+    /// The cached scene blob does not decode.
+    #[error("decoding the cached scene in {}", dir.display())]
+    DecodeCached {
+        /// The cache's folder.
+        dir: PathBuf,
+        /// The decoder's error.
+        #[source]
+        cause: CodecError,
+    },
+    /// The partial file cannot be read.
+    #[error("reading the partial file {}", path.display())]
+    ReadPartial {
+        /// The file.
+        path: PathBuf,
+        /// The reason.
+        #[source]
+        cause: std::io::Error,
+    },
+    /// The file is not a partial render.
+    #[error("{} is not a partial render", path.display())]
+    NotPartial {
+        /// The file.
+        path: PathBuf,
+        /// The decoder's error.
+        #[source]
+        cause: CodecError,
+    },
+    /// The partial file cannot be written.
+    #[error("writing {}", path.display())]
+    WritePartial {
+        /// The file.
+        path: PathBuf,
+        /// The reason.
+        #[source]
+        cause: std::io::Error,
+    },
+}
+
+/// A job: the blobs of a prepared scene and the frame to render.
+#[derive(Clone, Debug)]
+pub struct Job {
+    /// Blob id of the scene (geometry, BVH, materials, lights).
+    pub scene_blob: String,
+    /// Blob id of the photon maps, if the method has any.
+    pub photons_blob: Option<String>,
+    /// Every blob by id, shared with the shipping tasks.
+    pub blobs: BTreeMap<String, Arc<Vec<u8>>>,
+    /// The encoded frame (camera and settings).
+    pub frame: Vec<u8>,
+    /// Image size in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Whether the method is progressive photon mapping, whose strips each need every pass's photons: it gets
+    /// fewer, taller strips ([`crate::scheduler::rows_per_strip_progressive`]).
+    pub progressive: bool,
+}
+
+impl Job {
+    /// A job from the encoded parts of a prepared scene, rendered with `settings`.
+    pub fn new(
+        scene: Vec<u8>,
+        photons: Option<Vec<u8>>,
+        frame: Vec<u8>,
+        (width, height): (u32, u32),
+        settings: &photon_core::scene::RenderSettings,
+    ) -> Self {
+        let mut blobs = BTreeMap::new();
+        let scene_blob = photon_proto::blob_id(&scene);
+        blobs.insert(scene_blob.clone(), Arc::new(scene));
+        let photons_blob = photons.map(|p| {
+            let id = photon_proto::blob_id(&p);
+            blobs.insert(id.clone(), Arc::new(p));
+            id
+        });
+        let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
+        Self { scene_blob, photons_blob, blobs, frame, width, height, progressive }
+    }
+
+    /// A fingerprint of everything that decides the pixels: the blobs, the frame and the size. A partial file
+    /// is resumed only by the job with the same fingerprint.
+    pub fn fingerprint(&self) -> String {
+        let mut h = photon_proto::Hasher::new();
+        h.update(self.scene_blob.as_bytes());
+        h.update(self.photons_blob.as_deref().unwrap_or("").as_bytes());
+        h.update(&self.frame);
+        h.update(&self.width.to_le_bytes());
+        h.update(&self.height.to_le_bytes());
+        h.finalize().to_hex().to_string()
+    }
+
+    /// Bytes of all blobs.
+    pub fn blob_bytes(&self) -> u64 {
+        self.blobs.values().map(|b| b.len() as u64).sum()
+    }
+}
+
+/// Strips finished so far: what an interrupted render leaves for `--resume`.
+#[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
+pub struct Partial {
+    /// [`Job::fingerprint`] of the job.
+    pub fingerprint: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// The strip height the render used (a resumed render cuts the image the same way).
+    pub rows_per_strip: u32,
+    /// Finished strips: (first row, pixels of whole rows).
+    pub strips: Vec<(u32, Vec<f32>)>,
+}
+
+/// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes, BVH,
+/// materials, lights) and the photons blob are each read from the cache or built and stored.
+pub fn prepare_job(
+    scene: &Scene,
+    scene_path: &Path,
+    cache: Option<&PreparedCache>,
+) -> Result<(Job, Option<prepared_cache::Hits>), JobError> {
+    let camera = photon_core::camera::Camera::new(&scene.camera);
+    let settings = scene.render.clone();
+    let frame = Prepared::encode_frame_of(&camera, &settings).map_err(|e| JobError::Encode("frame", e))?;
+    let (width, height) = (camera.width, camera.height);
+    let Some(cache) = cache else {
+        let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
+        let scene_blob = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
+        let photons = prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?;
+        return Ok((Job::new(scene_blob, photons, frame, (width, height), &settings), None));
+    };
+    let keys = PreparedCache::keys(scene)?;
+    let needs_photons = settings.integrator.needs_photon_maps();
+    let cached_scene = cache.load(&keys.scene, "scene");
+    let cached_photons = if needs_photons { cache.load(&keys.photons, "photons") } else { None };
+    let hits = prepared_cache::Hits { scene: cached_scene.is_some(), photons: cached_photons.is_some() };
+    // Build what is missing; decode the cached scene only when photons must be traced in it.
+    let (scene_blob, prep) = match cached_scene {
+        Some(bytes) => (bytes, None),
+        None => {
+            let prep = Prepared::new(scene, scene_path)?;
+            let bytes = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
+            cache.store(&keys.scene, "scene", &bytes);
+            (bytes, Some(prep))
+        }
+    };
+    let photons = match (needs_photons, cached_photons) {
+        (false, _) => None,
+        (true, Some(bytes)) => Some(bytes),
+        (true, None) => {
+            let prep = match prep {
+                Some(p) => p,
+                None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
+                    .map_err(|cause| JobError::DecodeCached { dir: cache.dir().into(), cause })?,
+            };
+            let prep = prep.with_photon_maps(scene_path)?;
+            let bytes = prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?;
+            if let Some(b) = &bytes {
+                cache.store(&keys.photons, "photons", b);
+            }
+            bytes
+        }
+    };
+    Ok((Job::new(scene_blob, photons, frame, (width, height), &settings), Some(hits)))
+}
+
+/// Where an interrupted render keeps its finished strips.
+pub fn partial_path(output: &Path) -> PathBuf {
+    let mut p = output.as_os_str().to_owned();
+    p.push(".partial");
+    PathBuf::from(p)
+}
+
+impl Partial {
+    /// Reads a partial file left by an interrupted render.
+    pub fn read(path: &Path) -> Result<Self, JobError> {
+        let bytes = std::fs::read(path).map_err(|cause| JobError::ReadPartial { path: path.into(), cause })?;
+        photon_core::codec::decode(&bytes, bytes.len())
+            .map_err(|cause| JobError::NotPartial { path: path.into(), cause })
+    }
+
+    /// Writes the partial file.
+    pub fn write(&self, path: &Path) -> Result<(), JobError> {
+        let bytes = photon_core::codec::encode(self).map_err(|e| JobError::Encode("partial render", e))?;
+        std::fs::write(path, bytes).map_err(|cause| JobError::WritePartial { path: path.into(), cause })
+    }
+}

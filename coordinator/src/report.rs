@@ -1,0 +1,188 @@
+//! What a render tells the user at the end: one line per worker ([`WorkerReport`], printed by
+//! [`print_workers`]) and the summary line of `render` ([`Summary`]).
+
+use crate::farm::Outcome;
+use crate::prepared_cache::Hits;
+use photon_core::scene::{Integrator, RenderSettings};
+use std::fmt;
+use std::path::Path;
+
+/// One worker's line in the final report.
+#[derive(Clone, Debug)]
+pub struct WorkerReport {
+    /// Its name.
+    pub name: String,
+    /// Architecture and OS (`x86_64 linux`), empty if it never answered.
+    pub platform: String,
+    /// Render threads.
+    pub threads: u32,
+    /// Strips accepted from it.
+    pub strips: u32,
+    /// Seconds with a strip in flight.
+    pub busy_s: f64,
+    /// Megapixels accepted per busy second.
+    pub mpix_per_s: f64,
+    /// Blob bytes shipped to it.
+    pub shipped_bytes: u64,
+    /// Seconds spent shipping to it.
+    pub ship_s: f64,
+    /// Speculative copies it was given (tail duplicates of strips running elsewhere).
+    pub speculative: u32,
+    /// Its results dropped because another copy won.
+    pub duplicates: u32,
+    /// Failures it had, and why it stopped, if it did.
+    pub failures: u32,
+    /// `active`, or why it was refused, lost or dropped.
+    pub state: String,
+}
+
+/// The per-worker table.
+pub fn print_workers(workers: &[WorkerReport]) {
+    println!(
+        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>8} {:>8}  state",
+        "worker", "platform", "threads", "strips", "busy s", "Mpx/s", "shipped", "ship s", "spec/dup", "failures"
+    );
+    for w in workers {
+        println!(
+            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>8} {:>8}  {}",
+            w.name,
+            w.platform,
+            w.threads,
+            w.strips,
+            w.busy_s,
+            w.mpix_per_s,
+            human_bytes(w.shipped_bytes),
+            w.ship_s,
+            format!("{}/{}", w.speculative, w.duplicates),
+            w.failures,
+            w.state
+        );
+    }
+}
+
+/// A byte count for people: B, KiB or MiB with one decimal.
+pub fn human_bytes(b: u64) -> String {
+    match b {
+        0..1024 => format!("{b} B"),
+        1024..1_048_576 => format!("{:.1} KiB", b as f64 / 1024.0),
+        _ => format!("{:.1} MiB", b as f64 / 1_048_576.0),
+    }
+}
+
+/// What the summary line of a finished render says besides the [`Outcome`].
+pub struct Summary<'a> {
+    /// The image written.
+    pub output: &'a Path,
+    /// Its size in pixels.
+    pub size: (u32, u32),
+    /// The settings it was rendered with.
+    pub settings: &'a RenderSettings,
+    /// Seconds spent preparing the scene.
+    pub prepare_s: f64,
+    /// Seconds spent writing the image.
+    pub assemble_s: f64,
+    /// Which prepared blobs came from the cache, when there is one.
+    pub hits: Option<Hits>,
+}
+
+impl Summary<'_> {
+    /// The line: size, budget, method, times, ray rate, bytes shipped, and what was resumed or cached.
+    pub fn line(&self, outcome: &Outcome) -> String {
+        let settings = self.settings;
+        let (width, height) = self.size;
+        // Progressive photon mapping takes one camera sample per pass; the others take `spp`.
+        let samples = if settings.integrator == Integrator::Progressive {
+            format!("{} passes of {} photon paths", settings.photons.passes, settings.photons.pass_photons)
+        } else {
+            format!("{} spp", settings.spp)
+        };
+        let mut extras =
+            if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
+        if let Some(h) = self.hits {
+            let word = |hit: bool| if hit { "cached" } else { "built" };
+            extras.push_str(&format!(", scene {}", word(h.scene)));
+            if settings.integrator.needs_photon_maps() {
+                extras.push_str(&format!(", photons {}", word(h.photons)));
+            }
+        }
+        format!(
+            "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare, {:.2} s ship, {:.2} s assemble), \
+             {:.2} Mrays/s, {} blob bytes shipped{extras}",
+            self.output.display(),
+            settings.integrator,
+            outcome.render_s,
+            self.prepare_s,
+            outcome.ship_s,
+            self.assemble_s,
+            outcome.rays as f64 / outcome.render_s.max(1e-9) / 1e6,
+            outcome.workers.iter().map(|w| w.shipped_bytes).sum::<u64>()
+        )
+    }
+}
+
+/// Something the user should hear about while the render goes on; the loop prints each as it happens.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Warning {
+    /// Two workers compute with different math modes.
+    MixedMath {
+        /// The worker that just became ready, and its mode.
+        worker: String,
+        /// Its math mode.
+        mode: String,
+        /// A worker already ready with another mode.
+        other: String,
+        /// That worker's mode.
+        other_mode: String,
+    },
+    /// A worker could not be connected to, or refused the job.
+    Refused {
+        /// The worker.
+        worker: String,
+        /// Why.
+        reason: String,
+    },
+    /// An active worker's connection was lost.
+    Lost {
+        /// The worker.
+        worker: String,
+        /// Why.
+        reason: String,
+    },
+    /// A worker was dropped after too many counted failures.
+    Dropped {
+        /// The worker.
+        worker: String,
+        /// Why.
+        reason: String,
+    },
+}
+
+impl fmt::Display for Warning {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::MixedMath { worker, mode, other, other_mode } => write!(
+                f,
+                "workers compute with different math modes ({mode} on {worker}, {other_mode} on {other}): their \
+                 strips may differ in the last bits, and the image depends on which worker rendered what"
+            ),
+            Self::Refused { worker, reason } => write!(f, "worker {worker}: {reason}"),
+            Self::Lost { worker, reason } => write!(f, "worker {worker} lost ({reason}); its strips go to the others"),
+            Self::Dropped { worker, reason } => write!(f, "worker {worker} dropped: {reason}"),
+        }
+    }
+}
+
+/// The progress bar of a render (hidden unless `show`), starting at the strips resumed.
+pub fn progress_bar(show: bool, strips: usize, resumed: usize) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(strips as u64);
+    if let Ok(style) =
+        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} strips {msg}")
+    {
+        bar.set_style(style);
+    }
+    bar.set_position(resumed as u64);
+    bar
+}

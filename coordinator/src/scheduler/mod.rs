@@ -1,0 +1,465 @@
+//! The strip scheduler: which worker renders which rows, as a pure state machine.
+//!
+//! The image is cut along Y into strips of a few rows; strip ids are dense indices from the top. The caller owns
+//! the network and the clock and feeds events in with the time they happened (a [`Duration`] since the render
+//! started); the scheduler only keeps books. Nothing here reads the clock, spawns a task or iterates a hash map,
+//! so the same events always give the same decisions, and the tests drive it with a fake clock.
+//!
+//! # Policy, and why
+//! - **Pull, not push.** A worker asks for work ([`Scheduler::assign`]) whenever it has a free slot. Faster
+//!   machines come back sooner and so take more strips, with no up-front partition to get wrong (the static
+//!   partition of the original Bash layer left the fast machines idle while the slow ones finished).
+//! - **A few strips in flight per worker** ([`Policy::max_in_flight`], 2 by default): while a worker renders one
+//!   strip the next is already on its way, so the network overlaps compute; a larger number would only hoard
+//!   strips that a faster worker could have taken at the end.
+//! - **Pending strips in order; requeue at the front.** A failed, lost or timed-out strip goes back to the head of
+//!   the queue (requeued strips among themselves top of the image first): it has waited longest and the image
+//!   cannot be finished without it, so putting it last would only lengthen the tail. The queue never holds a strip
+//!   twice, nor one that is done or still running.
+//! - **Speculation at the tail.** When the queue is empty a free slot takes a copy of the oldest outstanding strip
+//!   (one the worker does not already hold, at most [`Policy::max_copies`] copies in flight). The first valid
+//!   result wins ([`Completion::Accepted`] lists the other copies to cancel); a later one is a
+//!   [`Completion::Duplicate`] and is dropped. One slow or stalled machine then cannot hold the whole render up.
+//! - **Deadlines from measured speed.** Each worker's seconds per row is an exponential moving average over the
+//!   strips it completed, measured from assignment to result (so it includes the wait behind its other in-flight
+//!   strip and the network, exactly the latency a deadline must allow for). A strip is overdue after
+//!   `max(deadline_factor × rows × seconds_per_row, deadline_floor)`; before a worker has finished anything it
+//!   borrows the fleet's speed scaled by its cores, and before anyone has, [`Policy::first_deadline`] applies.
+//!   [`Scheduler::expired`] lists overdue assignments; the caller cancels them and reports them as failures.
+//! - **Failures carry flags** ([`StripFailure`]): a retryable failure requeues the strip; a non-retryable one
+//!   (the same input would fail anywhere) stops the render; a *counted* failure counts against the worker, which
+//!   is dropped after [`Policy::max_counted_failures`] of them. Transport hiccups are retryable and not counted.
+//! - **A result is accepted only from the assignment that is still current**: a late result from a worker that
+//!   was declared lost, dropped or timed out is [`Completion::Unknown`] (or a duplicate, if the strip is done by
+//!   then), never counted twice. The strip has already been given to someone else by then.
+
+mod types;
+
+pub use types::*;
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::ops::Range;
+use std::time::Duration;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum StripState {
+    /// In the queue.
+    Pending,
+    /// At least one copy in flight.
+    Running,
+    /// A result was accepted (or preloaded by `mark_done`).
+    Done,
+    /// A non-retryable failure: never issued again.
+    Failed,
+}
+
+#[derive(Clone, Debug)]
+struct Strip {
+    rows: Range<u32>,
+    state: StripState,
+    /// Times the strip was issued; the attempt number of the latest issue.
+    issued: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Flight {
+    attempt: u32,
+    start: Duration,
+}
+
+#[derive(Clone, Debug)]
+struct Worker {
+    stats: WorkerStats,
+    in_flight: BTreeSet<StripId>,
+    /// Moving average of seconds per row, assignment to result.
+    seconds_per_row: Option<f64>,
+    /// When its in-flight set last became non-empty.
+    busy_since: Option<Duration>,
+}
+
+/// The strip scheduler (see the module documentation for the policy).
+#[derive(Clone, Debug)]
+pub struct Scheduler {
+    policy: Policy,
+    strips: Vec<Strip>,
+    /// Requeued strips, served before `fresh`, top of the image first.
+    retry: BTreeSet<StripId>,
+    /// Strips never issued, in order. Each strip in `retry` or `fresh` is in state `Pending`, and in one of them once.
+    fresh: VecDeque<StripId>,
+    /// Every copy in flight, keyed by (strip, worker) so a strip's copies are one range.
+    flights: BTreeMap<(StripId, WorkerId), Flight>,
+    workers: BTreeMap<WorkerId, Worker>,
+    done: usize,
+    fatal: Option<(StripId, StripFailure)>,
+}
+
+impl Scheduler {
+    /// A scheduler for `height` rows cut into strips of `rows_per_strip` rows (0 is taken as 1), default policy.
+    pub fn new(height: u32, rows_per_strip: u32) -> Self {
+        Self::with_policy(height, rows_per_strip, Policy::default())
+    }
+
+    /// A scheduler for `height` rows cut into strips of `rows_per_strip` rows (0 is taken as 1).
+    pub fn with_policy(height: u32, rows_per_strip: u32, policy: Policy) -> Self {
+        let step = rows_per_strip.max(1);
+        let strips: Vec<Strip> = (0..height.div_ceil(step))
+            .map(|i| {
+                let y0 = i * step;
+                Strip { rows: y0..(y0 + step).min(height), state: StripState::Pending, issued: 0 }
+            })
+            .collect();
+        let fresh = (0..strips.len() as u32).map(StripId).collect();
+        let policy =
+            Policy { max_in_flight: policy.max_in_flight.max(1), max_copies: policy.max_copies.max(1), ..policy };
+        let (flights, workers) = (BTreeMap::new(), BTreeMap::new());
+        Self { policy, strips, retry: BTreeSet::new(), fresh, flights, workers, done: 0, fatal: None }
+    }
+
+    /// The policy in force.
+    pub fn policy(&self) -> &Policy {
+        &self.policy
+    }
+
+    /// Number of strips.
+    pub fn strip_count(&self) -> usize {
+        self.strips.len()
+    }
+
+    /// The rows a strip covers, or `None` for an id out of range.
+    pub fn strip_rows(&self, strip: StripId) -> Option<Range<u32>> {
+        self.strips.get(strip.0 as usize).map(|s| s.rows.clone())
+    }
+
+    /// Registers a worker with `cores` cores. Returns `false` (and changes nothing) if the id was ever used.
+    pub fn add_worker(&mut self, id: WorkerId, cores: u32) -> bool {
+        if self.workers.contains_key(&id) {
+            return false;
+        }
+        let stats = WorkerStats {
+            cores,
+            strips: 0,
+            rows: 0,
+            busy: Duration::ZERO,
+            failures: 0,
+            counted_failures: 0,
+            duplicates: 0,
+            speculative: 0,
+            state: WorkerState::Active,
+        };
+        let worker = Worker { stats, in_flight: BTreeSet::new(), seconds_per_row: None, busy_since: None };
+        self.workers.insert(id, worker);
+        true
+    }
+
+    /// Gives `worker` its next strip at time `now`, if it is active, has a free slot and there is work: the first
+    /// pending strip, or else a speculative copy of the oldest outstanding one. Nothing after a fatal failure.
+    pub fn assign(&mut self, worker: WorkerId, now: Duration) -> Option<Assignment> {
+        if self.fatal.is_some() {
+            return None;
+        }
+        let w = self.workers.get(&worker)?;
+        if w.stats.state != WorkerState::Active || w.in_flight.len() >= self.policy.max_in_flight {
+            return None;
+        }
+        let (strip, speculative) = match self.retry.pop_first().or_else(|| self.fresh.pop_front()) {
+            Some(strip) => (strip, false),
+            None => (self.speculation_candidate(worker)?, true),
+        };
+        let s = &mut self.strips[strip.0 as usize];
+        s.state = StripState::Running;
+        s.issued += 1;
+        let assignment = Assignment { strip, rows: s.rows.clone(), attempt: s.issued, speculative };
+        self.flights.insert((strip, worker), Flight { attempt: s.issued, start: now });
+        if let Some(w) = self.workers.get_mut(&worker) {
+            if w.in_flight.is_empty() {
+                w.busy_since = Some(now);
+            }
+            w.in_flight.insert(strip);
+            if speculative {
+                w.stats.speculative += 1;
+            }
+        }
+        Some(assignment)
+    }
+
+    /// The running strip whose earliest copy started first, among those `worker` does not hold and that have
+    /// fewer than `max_copies` copies in flight; ties go to the lower strip id.
+    fn speculation_candidate(&self, worker: WorkerId) -> Option<StripId> {
+        // Per running strip: (earliest start, copies in flight, held by `worker`).
+        let mut running: BTreeMap<StripId, (Duration, usize, bool)> = BTreeMap::new();
+        for (&(strip, w), flight) in &self.flights {
+            let entry = running.entry(strip).or_insert((flight.start, 0, false));
+            entry.0 = entry.0.min(flight.start);
+            entry.1 += 1;
+            entry.2 |= w == worker;
+        }
+        running
+            .into_iter()
+            .filter(|&(strip, (_, copies, held))| {
+                !held && copies < self.policy.max_copies && self.strips[strip.0 as usize].state == StripState::Running
+            })
+            .min_by_key(|&(strip, (start, _, _))| (start, strip))
+            .map(|(strip, _)| strip)
+    }
+
+    /// Reports the result of `strip`, attempt `attempt`, from `worker` at time `now`.
+    pub fn complete(&mut self, worker: WorkerId, strip: StripId, attempt: u32, now: Duration) -> Completion {
+        let Some(state) = self.strips.get(strip.0 as usize).map(|s| s.state) else {
+            return Completion::Unknown;
+        };
+        if state == StripState::Done {
+            // A copy preloaded by `mark_done` while running may still be in flight: free its slot.
+            if self.flights.get(&(strip, worker)).is_some_and(|f| f.attempt == attempt) {
+                self.land(strip, worker, now);
+            }
+            if let Some(w) = self.workers.get_mut(&worker) {
+                w.stats.duplicates += 1;
+            }
+            return Completion::Duplicate;
+        }
+        if self.flights.get(&(strip, worker)).is_none_or(|f| f.attempt != attempt) {
+            return Completion::Unknown;
+        }
+        let Some(flight) = self.land(strip, worker, now) else {
+            return Completion::Unknown;
+        };
+        let s = &mut self.strips[strip.0 as usize];
+        s.state = StripState::Done;
+        self.done += 1;
+        let rows = s.rows.len() as u32;
+        let smoothing = self.policy.speed_smoothing.clamp(f64::MIN_POSITIVE, 1.0);
+        if let Some(w) = self.workers.get_mut(&worker) {
+            w.stats.strips += 1;
+            w.stats.rows += u64::from(rows);
+            let sample = now.saturating_sub(flight.start).as_secs_f64() / f64::from(rows.max(1));
+            w.seconds_per_row = Some(match w.seconds_per_row {
+                Some(avg) => avg + smoothing * (sample - avg),
+                None => sample,
+            });
+        }
+        let others: Vec<WorkerId> = self.copies(strip).map(|(w, _)| w).collect();
+        let cancel = others
+            .into_iter()
+            .map(|w| {
+                self.land(strip, w, now);
+                (w, strip)
+            })
+            .collect();
+        Completion::Accepted { cancel }
+    }
+
+    /// Reports that `worker` could not deliver `strip` at time `now` (the caller has cancelled the work on it).
+    pub fn failed(&mut self, worker: WorkerId, strip: StripId, failure: StripFailure, now: Duration) -> FailureOutcome {
+        if !self.flights.contains_key(&(strip, worker)) {
+            return FailureOutcome::Ignored;
+        }
+        self.land(strip, worker, now);
+        if self.strips[strip.0 as usize].state == StripState::Done {
+            return FailureOutcome::Ignored;
+        }
+        let Some(w) = self.workers.get_mut(&worker) else {
+            return FailureOutcome::Ignored;
+        };
+        w.stats.failures += 1;
+        if failure.counted {
+            w.stats.counted_failures += 1;
+        }
+        let counted_failures = w.stats.counted_failures;
+        if !failure.retryable {
+            if self.copies(strip).next().is_none() {
+                self.strips[strip.0 as usize].state = StripState::Failed;
+            }
+            tracing::error!("{worker}: {strip}: {failure}");
+            self.fatal.get_or_insert((strip, failure));
+            return FailureOutcome::Fatal;
+        }
+        let limit = self.policy.max_counted_failures;
+        if failure.counted && counted_failures >= limit {
+            let reason =
+                format!("{counted_failures} counted failures (limit {limit}), the last on {strip}: {}", failure.reason);
+            tracing::warn!("dropping {worker}: {reason}");
+            if let Some(w) = self.workers.get_mut(&worker) {
+                w.stats.state = WorkerState::Dropped(reason.clone());
+            }
+            let cancel = self.withdraw_all(worker, now);
+            self.requeue_front(&cancel);
+            self.requeue_front(&[strip]);
+            return FailureOutcome::WorkerDropped { reason, cancel };
+        }
+        self.requeue_front(&[strip]);
+        FailureOutcome::Retrying
+    }
+
+    /// Reports that `worker`'s connection is gone at time `now`: every strip it held is requeued at the front.
+    /// Returns those strips. Its late results will not be accepted.
+    pub fn worker_lost(&mut self, worker: WorkerId, now: Duration) -> Vec<StripId> {
+        match self.workers.get_mut(&worker) {
+            Some(w) if w.stats.state == WorkerState::Active => w.stats.state = WorkerState::Lost,
+            _ => return Vec::new(),
+        }
+        let strips = self.withdraw_all(worker, now);
+        self.requeue_front(&strips);
+        strips
+    }
+
+    /// Assignments past their deadline at `now`, in (strip, worker) order. The caller cancels each and reports it
+    /// with [`Scheduler::failed`] (e.g. [`StripFailure::timed_out`]); until then it is listed again. If a report
+    /// drops the worker, its later entries are already withdrawn and report as [`FailureOutcome::Ignored`].
+    pub fn expired(&self, now: Duration) -> Vec<(WorkerId, StripId)> {
+        self.flights
+            .iter()
+            .filter(|&(&(strip, worker), flight)| now > self.deadline_of(strip, worker, flight))
+            .map(|(&(strip, worker), _)| (worker, strip))
+            .collect()
+    }
+
+    /// The deadline of `worker`'s copy of `strip`, if it holds one.
+    pub fn deadline(&self, worker: WorkerId, strip: StripId) -> Option<Duration> {
+        self.flights.get(&(strip, worker)).map(|f| self.deadline_of(strip, worker, f))
+    }
+
+    /// The earliest deadline of anything in flight: when the caller should next call [`Scheduler::expired`].
+    pub fn next_deadline(&self) -> Option<Duration> {
+        self.flights.iter().map(|(&(strip, worker), f)| self.deadline_of(strip, worker, f)).min()
+    }
+
+    /// Whether every strip is done.
+    pub fn is_done(&self) -> bool {
+        self.done == self.strips.len()
+    }
+
+    /// (strips done, strips in total).
+    pub fn progress(&self) -> (usize, usize) {
+        (self.done, self.strips.len())
+    }
+
+    /// The strips done so far, in order: what a resumable partial file records.
+    pub fn done_strips(&self) -> Vec<StripId> {
+        self.strips_in(StripState::Done)
+    }
+
+    /// The strips waiting in the queue, in the order they will be served.
+    pub fn pending_strips(&self) -> Vec<StripId> {
+        self.retry.iter().chain(&self.fresh).copied().collect()
+    }
+
+    /// Marks a strip finished earlier (`--resume`), so it is never assigned. Returns `false` if the id is out of
+    /// range or the strip was already done. A copy still in flight will report as a duplicate.
+    pub fn mark_done(&mut self, strip: StripId) -> bool {
+        let Some(s) = self.strips.get_mut(strip.0 as usize) else {
+            return false;
+        };
+        if s.state == StripState::Done {
+            return false;
+        }
+        if s.state == StripState::Pending {
+            self.retry.remove(&strip);
+            self.fresh.retain(|&p| p != strip);
+        }
+        s.state = StripState::Done;
+        self.done += 1;
+        true
+    }
+
+    /// Whether no worker is active (none registered, or all lost or dropped): the caller should stop and say so.
+    /// Strips not done stay pending.
+    pub fn all_workers_gone(&self) -> bool {
+        !self.workers.values().any(|w| w.stats.state == WorkerState::Active)
+    }
+
+    /// The first non-retryable failure, if any: the render cannot finish.
+    pub fn fatal(&self) -> Option<&(StripId, StripFailure)> {
+        self.fatal.as_ref()
+    }
+
+    /// One worker's numbers.
+    pub fn worker_stats(&self, worker: WorkerId) -> Option<&WorkerStats> {
+        self.workers.get(&worker).map(|w| &w.stats)
+    }
+
+    /// Every worker's numbers, in id order.
+    pub fn workers(&self) -> impl Iterator<Item = (WorkerId, &WorkerStats)> {
+        self.workers.iter().map(|(&id, w)| (id, &w.stats))
+    }
+
+    /// The strips a worker holds, in order.
+    pub fn in_flight(&self, worker: WorkerId) -> Vec<StripId> {
+        self.workers.get(&worker).map(|w| w.in_flight.iter().copied().collect()).unwrap_or_default()
+    }
+
+    /// A worker's measured seconds per row (assignment to result), once it has completed a strip.
+    pub fn seconds_per_row(&self, worker: WorkerId) -> Option<f64> {
+        self.workers.get(&worker).and_then(|w| w.seconds_per_row)
+    }
+
+    fn strips_in(&self, state: StripState) -> Vec<StripId> {
+        (0..self.strips.len() as u32).map(StripId).filter(|s| self.strips[s.0 as usize].state == state).collect()
+    }
+
+    /// The copies of `strip` in flight, as (worker, flight).
+    fn copies(&self, strip: StripId) -> impl Iterator<Item = (WorkerId, &Flight)> {
+        self.flights.range((strip, WorkerId(0))..=(strip, WorkerId(u32::MAX))).map(|(&(_, w), f)| (w, f))
+    }
+
+    /// Removes one copy from flight and frees the worker's slot, closing its busy interval if it is now idle.
+    fn land(&mut self, strip: StripId, worker: WorkerId, now: Duration) -> Option<Flight> {
+        let flight = self.flights.remove(&(strip, worker))?;
+        if let Some(w) = self.workers.get_mut(&worker) {
+            w.in_flight.remove(&strip);
+            if w.in_flight.is_empty()
+                && let Some(since) = w.busy_since.take()
+            {
+                w.stats.busy += now.saturating_sub(since);
+            }
+        }
+        Some(flight)
+    }
+
+    /// Lands every copy `worker` holds; returns those strips in order.
+    fn withdraw_all(&mut self, worker: WorkerId, now: Duration) -> Vec<StripId> {
+        let strips = self.in_flight(worker);
+        for &strip in &strips {
+            self.land(strip, worker, now);
+        }
+        strips
+    }
+
+    /// Puts back at the front of the queue those strips that are running with no copy left.
+    fn requeue_front(&mut self, strips: &[StripId]) {
+        for &strip in strips {
+            if self.strips[strip.0 as usize].state == StripState::Running && self.copies(strip).next().is_none() {
+                self.strips[strip.0 as usize].state = StripState::Pending;
+                self.retry.insert(strip);
+            }
+        }
+    }
+
+    /// Expected latency of the copy from the worker's measured speed, else the fleet's scaled by cores.
+    fn deadline_of(&self, strip: StripId, worker: WorkerId, flight: &Flight) -> Duration {
+        let rows = self.strips[strip.0 as usize].rows.len() as f64;
+        let allowance = match self.expected_seconds_per_row(worker) {
+            Some(spr) => Duration::try_from_secs_f64(self.policy.deadline_factor * rows * spr)
+                .unwrap_or(Duration::MAX)
+                .max(self.policy.deadline_floor),
+            None => self.policy.first_deadline,
+        };
+        flight.start.saturating_add(allowance)
+    }
+
+    fn expected_seconds_per_row(&self, worker: WorkerId) -> Option<f64> {
+        let w = self.workers.get(&worker)?;
+        if w.seconds_per_row.is_some() {
+            return w.seconds_per_row;
+        }
+        // Core-seconds per row, averaged over the workers that have measured theirs.
+        let (sum, n) = self
+            .workers
+            .values()
+            .filter_map(|o| o.seconds_per_row.map(|spr| spr * f64::from(o.stats.cores.max(1))))
+            .fold((0.0, 0u32), |(sum, n), cs| (sum + cs, n + 1));
+        (n > 0).then(|| sum / f64::from(n) / f64::from(w.stats.cores.max(1)))
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,469 @@
+//! One worker's session over gRPC: connect (plaintext or TLS, with the shared token), say hello, ship the blobs
+//! it lacks in chunks, and fetch a strip, checking what comes back. A failed strip is classified here: a worker
+//! that cannot be reached is lost; one that answered with a failure gets a [`StripFailure`] whose flags say
+//! whether to retry and whether it counts against the worker.
+
+use crate::job::Job;
+use crate::scheduler::StripFailure;
+use photon_proto::pb::render_client::RenderClient;
+use photon_proto::pb::{self, strip_event::Event as WireEvent};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tonic::Code;
+use tonic::metadata::{AsciiMetadataValue, MetadataValue};
+use tonic::service::interceptor::InterceptedService;
+use tonic::transport::Channel;
+
+/// Where a worker is.
+#[derive(Clone, Debug)]
+pub struct WorkerAddr {
+    /// A name for reports (the host list's, or the address).
+    pub name: String,
+    /// `http://host:port`.
+    pub uri: String,
+}
+
+impl WorkerAddr {
+    /// A worker at `address` (`host:port`, or a URI with a scheme), named `name` or after its address.
+    pub fn new(address: &str, name: Option<&str>) -> Self {
+        let address = address.trim();
+        let uri = if address.contains("://") { address.to_owned() } else { format!("http://{address}") };
+        Self { name: name.map_or_else(|| address.to_owned(), str::to_owned), uri }
+    }
+}
+
+/// Adds the shared token to every call.
+#[derive(Clone)]
+pub struct Auth(Option<AsciiMetadataValue>);
+
+impl tonic::service::Interceptor for Auth {
+    fn call(&mut self, mut req: tonic::Request<()>) -> Result<tonic::Request<()>, tonic::Status> {
+        if let Some(v) = &self.0 {
+            req.metadata_mut().insert(photon_proto::TOKEN_KEY, v.clone());
+        }
+        Ok(req)
+    }
+}
+
+/// Why a session with a worker failed: it is refused for this render. Each message is the one the user reads.
+#[derive(Debug, thiserror::Error)]
+pub enum SessionError {
+    /// The token cannot travel in an HTTP/2 header.
+    #[error("the token must be printable ASCII")]
+    BadToken,
+    /// The address is not a URI.
+    #[error("bad worker address {uri}: {cause}")]
+    BadAddress {
+        /// The worker's URI.
+        uri: String,
+        /// The reason.
+        cause: tonic::transport::Error,
+    },
+    /// No connection within the patience.
+    #[error("cannot connect to {uri}: {chain}{hint}")]
+    Connect {
+        /// The worker's URI.
+        uri: String,
+        /// The connection error with its sources, on one line.
+        chain: String,
+        /// A hint when TLS is the likely cause, else empty.
+        hint: &'static str,
+    },
+    /// The worker accepted the connection and said nothing.
+    #[error("no answer to hello within {} s", ANSWER_TIMEOUT.as_secs())]
+    HelloTimeout,
+    /// The worker refused the hello (another protocol or build, a wrong token, or not gRPC at all).
+    #[error("refused: {status}{hint}")]
+    Refused {
+        /// The status, on one line.
+        status: String,
+        /// A hint when TLS is the likely cause, else empty.
+        hint: &'static str,
+    },
+    /// The worker did not list its missing blobs in time.
+    #[error("no answer to the blob list within {} s", ANSWER_TIMEOUT.as_secs())]
+    BlobListTimeout,
+    /// The worker failed to list its missing blobs.
+    #[error("listing blobs: {0}")]
+    BlobList(String),
+    /// The worker asked for a blob that is not part of the job.
+    #[error("asked for blob {0}, which this job does not have")]
+    UnknownBlob(String),
+    /// A blob is larger than the worker accepts.
+    #[error("blob of {} MiB exceeds the worker's limit of {} MiB", .size >> 20, .limit >> 20)]
+    BlobTooLarge {
+        /// The blob's bytes.
+        size: u64,
+        /// The worker's limit in bytes.
+        limit: u64,
+    },
+    /// An upload took longer than its allowance.
+    #[error("shipping blob {id} took longer than {} s", .limit.as_secs())]
+    ShipTimeout {
+        /// The blob.
+        id: String,
+        /// The allowance.
+        limit: Duration,
+    },
+    /// An upload failed.
+    #[error("shipping blob {id}: {status}")]
+    Ship {
+        /// The blob.
+        id: String,
+        /// The status, on one line.
+        status: String,
+    },
+}
+
+/// A client of one worker.
+pub type Client = RenderClient<InterceptedService<Channel, Auth>>;
+
+/// Connects to a worker, retrying refused connections for `patience` (a worker that was just started may not
+/// listen yet). With `tls_ca`, the connection is TLS and the worker's certificate must be signed by that
+/// authority and name the worker's host.
+pub async fn connect(
+    uri: &str,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Result<Client, SessionError> {
+    let auth = match token {
+        Some(t) => Some(MetadataValue::try_from(photon_proto::bearer(t)).map_err(|_| SessionError::BadToken)?),
+        None => None,
+    };
+    let uri = if tls_ca.is_some() { uri.replacen("http://", "https://", 1) } else { uri.to_owned() };
+    let endpoint = match tls_ca {
+        Some(ca) => photon_proto::transport::tls_endpoint(&uri, ca),
+        None => photon_proto::transport::endpoint(&uri),
+    }
+    .map_err(|cause| SessionError::BadAddress { uri: uri.clone(), cause })?;
+    let start = Instant::now();
+    let channel = loop {
+        match endpoint.connect().await {
+            Ok(c) => break c,
+            Err(e) if start.elapsed() < patience => {
+                tracing::debug!(uri, "connect: {e}; retrying");
+                tokio::time::sleep(Duration::from_millis(100)).await;
+            }
+            Err(e) => {
+                let chain = error_chain(&e);
+                // A TLS client talking to a plaintext worker sees its handshake answered with HTTP/2 bytes.
+                let hint = if tls_ca.is_some() && !chain.contains("certificate") && !chain.contains("refused") {
+                    " (if the worker runs without --tls-cert, drop --tls-ca)"
+                } else {
+                    ""
+                };
+                return Err(SessionError::Connect { uri, chain, hint });
+            }
+        }
+    };
+    Ok(RenderClient::with_interceptor(channel, Auth(auth))
+        .max_decoding_message_size(photon_proto::MAX_MESSAGE)
+        .max_encoding_message_size(photon_proto::MAX_MESSAGE))
+}
+
+/// An error with its sources, on one line.
+fn error_chain(e: &dyn std::error::Error) -> String {
+    let mut s = e.to_string();
+    let mut source = e.source();
+    while let Some(inner) = source {
+        let part = inner.to_string();
+        // Layers often repeat their inner error's words; say each once.
+        if !s.ends_with(&part) {
+            s.push_str(": ");
+            s.push_str(&part);
+        }
+        source = inner.source();
+    }
+    s
+}
+
+/// A status as one readable line.
+fn status_line(s: &tonic::Status) -> String {
+    let code = format!("{:?}", s.code());
+    if s.message().is_empty() { code } else { format!("{} ({code})", s.message()) }
+}
+
+/// A worker that said hello and holds every blob of the job.
+pub struct Ready {
+    /// Its client.
+    pub client: Client,
+    /// Its hello.
+    pub hello: pb::HelloReply,
+    /// Blob bytes shipped to it.
+    pub shipped: u64,
+    /// Seconds from the start of the session until it was ready.
+    pub ship_s: f64,
+}
+
+/// Connects to the worker at `addr`, says hello and ships the blobs it lacks.
+pub async fn open(
+    addr: &WorkerAddr,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    job: &Job,
+) -> Result<Ready, SessionError> {
+    let started = Instant::now();
+    let mut client = connect(&addr.uri, token, tls_ca, Duration::from_secs(3)).await?;
+    let (hello, shipped) = introduce(&mut client, job).await?;
+    Ok(Ready { client, hello, shipped, ship_s: started.elapsed().as_secs_f64() })
+}
+
+/// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
+pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), SessionError> {
+    let request = pb::HelloRequest {
+        protocol_version: photon_proto::PROTOCOL_VERSION,
+        build_id: photon_proto::BUILD_ID.to_owned(),
+        crate_version: photon_proto::CRATE_VERSION.to_owned(),
+    };
+    // A peer that accepts the connection and never answers must not hang the render.
+    let hello = tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))
+        .await
+        .map_err(|_| SessionError::HelloTimeout)?
+        .map_err(|s| {
+            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer.
+            let hint = match s.code() {
+                Code::Unavailable | Code::Unknown | Code::Internal => {
+                    " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
+                }
+                _ => "",
+            };
+            SessionError::Refused { status: status_line(&s), hint }
+        })?
+        .into_inner();
+    let ids: Vec<String> = job.blobs.keys().cloned().collect();
+    let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
+        .await
+        .map_err(|_| SessionError::BlobListTimeout)?
+        .map_err(|s| SessionError::BlobList(status_line(&s)))?
+        .into_inner()
+        .missing;
+    let mut shipped = 0;
+    for id in missing {
+        let Some(blob) = job.blobs.get(&id) else {
+            return Err(SessionError::UnknownBlob(id));
+        };
+        if blob.len() as u64 > hello.max_blob_bytes {
+            return Err(SessionError::BlobTooLarge { size: blob.len() as u64, limit: hello.max_blob_bytes });
+        }
+        shipped += put_blob(client, &id, blob.clone()).await?;
+    }
+    Ok((hello, shipped))
+}
+
+/// Uploads one blob in chunks of at most [`photon_proto::MAX_CHUNK`] bytes, copied one at a time as the stream
+/// is sent. Allowed [`ANSWER_TIMEOUT`] plus a second per MiB (1 MiB/s is a very slow link).
+pub async fn put_blob(client: &mut Client, id: &str, blob: Arc<Vec<u8>>) -> Result<u64, SessionError> {
+    let header = pb::BlobHeader { id: id.to_owned(), size: blob.len() as u64 };
+    let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
+    let reply = tokio::time::timeout(limit, client.put_blob(tokio_stream::iter(chunk_messages(header, blob))))
+        .await
+        .map_err(|_| SessionError::ShipTimeout { id: id.to_owned(), limit })?
+        .map_err(|s| SessionError::Ship { id: id.to_owned(), status: status_line(&s) })?;
+    Ok(reply.into_inner().stored)
+}
+
+/// How long a worker may take to answer a short call (hello, the blob list).
+pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(30);
+
+/// The upload messages of a blob, made lazily: the header rides with the first chunk.
+pub fn chunk_messages(header: pb::BlobHeader, blob: Arc<Vec<u8>>) -> impl Iterator<Item = pb::BlobChunk> {
+    let n = blob.len().div_ceil(photon_proto::MAX_CHUNK).max(1);
+    let mut header = Some(header);
+    (0..n).map(move |i| {
+        let lo = i * photon_proto::MAX_CHUNK;
+        let hi = (lo + photon_proto::MAX_CHUNK).min(blob.len());
+        pb::BlobChunk { header: header.take(), data: blob[lo..hi].to_vec() }
+    })
+}
+
+/// Why a strip call brought back no valid strip. Each message is the one the log and the worker table show.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum StripError {
+    /// The call ended with a status.
+    #[error("{line}")]
+    Status {
+        /// Its code, which decides what the failure means.
+        code: Code,
+        /// The status, on one line.
+        line: String,
+    },
+    /// The stream ended without a summary.
+    #[error("the strip's stream ended before its summary")]
+    StreamEnded,
+    /// Pixel rows came out of order or not as whole rows.
+    #[error("pixel rows out of order: got {bytes} bytes from row {first_row}, expected whole rows from row {next_row}")]
+    RowsOutOfOrder {
+        /// Bytes in the message.
+        bytes: usize,
+        /// The row they claimed to start at.
+        first_row: u32,
+        /// The row expected next.
+        next_row: u32,
+    },
+    /// More pixels than the strip holds.
+    #[error("more pixels than rows {row_start}..{row_end} hold")]
+    TooManyPixels {
+        /// The strip's first row.
+        row_start: u32,
+        /// The row after its last.
+        row_end: u32,
+    },
+    /// The summary came before all pixels.
+    #[error("{got} of {expected} pixel bytes before the summary")]
+    ShortStrip {
+        /// Bytes received.
+        got: usize,
+        /// Bytes the strip holds.
+        expected: usize,
+    },
+    /// The pixels do not hash to the worker's checksum.
+    #[error("checksum mismatch: the pixels changed after the worker hashed them")]
+    ChecksumMismatch,
+    /// A value that no radiance can have (negative or not finite).
+    #[error("pixel ({x}, {y}) holds {value}: not a radiance")]
+    NotRadiance {
+        /// Column.
+        x: u32,
+        /// Row.
+        y: u32,
+        /// The value.
+        value: f32,
+    },
+    /// A message with no event.
+    #[error("an empty event")]
+    EmptyEvent,
+}
+
+impl StripError {
+    /// The worker cannot be reached (the connection is gone, or never came back): it is lost, and its strips go
+    /// to the others; the failure is not reported against the strip.
+    pub fn lost(&self) -> bool {
+        match self {
+            Self::Status { code, .. } => matches!(code, Code::Unavailable | Code::Unknown | Code::Aborted),
+            Self::StreamEnded => true,
+            _ => false,
+        }
+    }
+
+    /// Another attempt could succeed; `false` when the job itself cannot render (another worker would fail the
+    /// same way).
+    pub fn retryable(&self) -> bool {
+        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. })
+    }
+
+    /// The failure counts against the worker: it misbehaved, rather than being busy or cancelled, or the job
+    /// being broken.
+    pub fn counted(&self) -> bool {
+        match self {
+            Self::Status { code, .. } => !matches!(
+                code,
+                Code::Unavailable
+                    | Code::Unknown
+                    | Code::Aborted
+                    | Code::InvalidArgument
+                    | Code::OutOfRange
+                    | Code::ResourceExhausted
+                    | Code::Cancelled
+                    | Code::DeadlineExceeded
+            ),
+            Self::StreamEnded => false,
+            _ => true,
+        }
+    }
+
+    /// The failure as the scheduler takes it.
+    pub fn failure(&self) -> StripFailure {
+        StripFailure { retryable: self.retryable(), counted: self.counted(), reason: self.to_string() }
+    }
+}
+
+impl From<tonic::Status> for StripError {
+    fn from(s: tonic::Status) -> Self {
+        Self::Status { code: s.code(), line: status_line(&s) }
+    }
+}
+
+/// Asks `client` for the rows of one strip and validates what comes back.
+pub async fn fetch_strip(
+    mut client: Client,
+    request: pb::StripRequest,
+    width: u32,
+    progress: impl Fn(u32),
+) -> Result<(Vec<f32>, u64), StripError> {
+    let (row_start, row_end) = (request.row_start, request.row_end);
+    let mut stream = client.render_strip(request).await?.into_inner();
+    let row_bytes = 12 * width as usize;
+    let expected = row_bytes * (row_end - row_start) as usize;
+    let mut bytes: Vec<u8> = Vec::with_capacity(expected);
+    loop {
+        let event = match stream.message().await {
+            Ok(Some(e)) => e,
+            Ok(None) => return Err(StripError::StreamEnded),
+            Err(s) => return Err(s.into()),
+        };
+        match event.event {
+            Some(WireEvent::RowsDone(n)) => progress(n),
+            Some(WireEvent::Rows(rows)) => {
+                let next_row = row_start + (bytes.len() / row_bytes.max(1)) as u32;
+                if rows.first_row != next_row || rows.data.len() % row_bytes.max(1) != 0 {
+                    return Err(StripError::RowsOutOfOrder {
+                        bytes: rows.data.len(),
+                        first_row: rows.first_row,
+                        next_row,
+                    });
+                }
+                if bytes.len() + rows.data.len() > expected {
+                    return Err(StripError::TooManyPixels { row_start, row_end });
+                }
+                bytes.extend_from_slice(&rows.data);
+            }
+            Some(WireEvent::Done(summary)) => {
+                if bytes.len() != expected {
+                    return Err(StripError::ShortStrip { got: bytes.len(), expected });
+                }
+                if summary.checksum != photon_proto::checksum(&bytes) {
+                    return Err(StripError::ChecksumMismatch);
+                }
+                let pixels = photon_proto::bytes_to_pixels(&bytes).unwrap_or_default();
+                if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
+                    let (x, y) = ((i / 3) as u32 % width.max(1), row_start + (i / 3) as u32 / width.max(1));
+                    return Err(StripError::NotRadiance { x, y, value: pixels[i] });
+                }
+                return Ok((pixels, summary.rays));
+            }
+            None => return Err(StripError::EmptyEvent),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn strip_errors_keep_the_flags_of_their_kind() {
+        let status = |code| StripError::from(tonic::Status::new(code, "why"));
+        // (lost, retryable, counted)
+        let cases = [
+            (Code::Unavailable, (true, true, false)),
+            (Code::Aborted, (true, true, false)),
+            (Code::InvalidArgument, (false, false, false)),
+            (Code::OutOfRange, (false, false, false)),
+            (Code::ResourceExhausted, (false, true, false)),
+            (Code::Cancelled, (false, true, false)),
+            (Code::DeadlineExceeded, (false, true, false)),
+            (Code::Internal, (false, true, true)),
+            (Code::NotFound, (false, true, true)),
+        ];
+        for (code, flags) in cases {
+            let e = status(code);
+            assert_eq!((e.lost(), e.retryable(), e.counted()), flags, "{code:?}");
+        }
+        assert_eq!(status(Code::Internal).to_string(), "why (Internal)");
+        assert!(StripError::StreamEnded.lost());
+        let bad = StripError::NotRadiance { x: 1, y: 2, value: -0.5 };
+        assert_eq!(bad.failure(), StripFailure::counted("pixel (1, 2) holds -0.5: not a radiance"));
+        assert!(StripError::ChecksumMismatch.failure().counted);
+    }
+}
