@@ -82,7 +82,7 @@ impl Scene {
         let settings = overrides.iter().map(|o| Setting::parse(o, path)).collect::<Result<Vec<_>, _>>()?;
         let mut scene = match deserialize(&file, &settings, path)? {
             Ok(scene) => scene,
-            Err(e) => return Err(blame(&file, &settings, &e, path)?),
+            Err(e) => return Err(blame(&text, &file, &settings, &e, path)?),
         };
         scene.base_dir = base_dir(path);
         scene.validate(&text, path).map_err(|e| match e {
@@ -110,8 +110,9 @@ fn deserialize(
 }
 
 /// The error of a scene that does not deserialise with its overrides: the override without which it does
-/// (named with its field), else the file's own error.
+/// (named with its field), else the file's own error (with its line), else the error after the overrides.
 fn blame(
+    text: &str,
     file: &toml::Table,
     settings: &[Setting<'_>],
     error: &toml::de::Error,
@@ -128,6 +129,9 @@ fn blame(
                 message: error.message().to_string(),
             });
         }
+    }
+    if let Err(own) = toml::from_str::<Scene>(text) {
+        return Ok(SceneError::Parse { path: path.into(), message: own.to_string() });
     }
     Ok(SceneError::Parse { path: path.into(), message: format!("after --set: {}", error.message()) })
 }
