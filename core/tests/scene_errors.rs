@@ -454,3 +454,40 @@ fn manual_transform_order_holds() {
     let p = t.matrix().transform_point3(glam::Vec3::Y);
     assert!((p - glam::Vec3::new(12.0, 0.0, 0.0)).length() < 1e-5, "{p}");
 }
+
+/// A value the types accept but validation refuses is reported at the line of its key.
+#[test]
+fn validation_errors_give_the_line_of_the_field() {
+    let text = format!(
+        "{CAMERA}{WHITE}[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 1.0, 0.0]\nradius = -0.5\nmaterial = \"white\"\n"
+    );
+    let line = text.lines().position(|l| l.starts_with("radius")).unwrap() + 1;
+    let msg = parse_err(&text);
+    assert_names(&msg, &[&format!("{FILE}:{line}:"), "objects[0].radius", "expected a positive number"]);
+    // A field left at its default that is refused points at its table: `[render]` here.
+    let msg = parse_err(&format!("{CAMERA}{WHITE}[render]\nspp = 0\n"));
+    assert_names(&msg, &[&format!("{FILE}:{}:", CAMERA.lines().count() + 4), "render.spp"]);
+}
+
+/// `--set` pairs (and the command line's shorthands, which are `--set` pairs) are errors that name the scene
+/// field and the override, whether the value has the wrong type or is refused by validation.
+#[test]
+fn override_errors_name_the_scene_field() {
+    let dir = temp_dir("overrides");
+    let path = dir.join(FILE);
+    std::fs::write(&path, format!("{CAMERA}{WHITE}{SPHERE}")).unwrap();
+    let load = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        Scene::load_with(&path, &sets).map(|_| ()).map_err(|e| chain(&e))
+    };
+    let msg = load(&["render.spp=4", "render.photons.k=-1"]).unwrap_err();
+    assert_names(&msg, &["render.photons.k:", "--set render.photons.k=-1", "u32"]);
+    let msg = load(&["render.photons.k=1"]).unwrap_err();
+    assert_names(&msg, &["render.photons.k:", "expected at least 2 photons", "--set render.photons.k=1"]);
+    let msg = load(&["camera.width=0"]).unwrap_err();
+    assert_names(&msg, &["camera.width:", "1..=65536", "--set camera.width=0"]);
+    let msg = load(&["render.spp"]).unwrap_err();
+    assert_names(&msg, &["expected KEY=VALUE"]);
+    assert!(load(&["render.spp=3", "render.photons.kernel=box"]).is_ok());
+    let _ = std::fs::remove_dir_all(&dir);
+}
