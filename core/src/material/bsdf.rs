@@ -96,6 +96,10 @@ pub struct BsdfSample {
     pub pdf: f32,
     /// Whether `wi` came from a delta lobe (mirror or glass).
     pub delta: bool,
+    /// For a refracted `wi`, the relative index η of the side `wi` points into over the side of `wo`; 1 for a
+    /// reflection. Radiance crossing the surface is scaled by 1/η², which is not a loss of energy: Russian
+    /// roulette undoes it (pbrt-v4's `etaScale`).
+    pub eta: f32,
 }
 
 /// A [`Bxdf`] placed at a surface point: the shading frame (normal on local +z) and the geometric normal.
@@ -255,7 +259,7 @@ impl Bsdf {
         if pdf <= 0.0 {
             return None;
         }
-        Some(BsdfSample { wi, f: self.f_local(wo_l, wi_l), pdf, delta: false })
+        Some(BsdfSample { wi, f: self.f_local(wo_l, wi_l), pdf, delta: false, eta: 1.0 })
     }
 
     /// Mirror reflection about the shading normal with reflectance `r`, chosen with probability `prob`.
@@ -265,7 +269,7 @@ impl Bsdf {
         if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 || wi_l.z == 0.0 {
             return None;
         }
-        Some(BsdfSample { wi, f: r / wi_l.z.abs(), pdf: prob, delta: true })
+        Some(BsdfSample { wi, f: r / wi_l.z.abs(), pdf: prob, delta: true, eta: 1.0 })
     }
 
     /// Fresnel reflection (probability F) or refraction (1 − F) with index `eta` (inside over outside).
@@ -297,7 +301,7 @@ impl Bsdf {
             if wi.dot(self.ng) * side <= 0.0 {
                 return None;
             }
-            return Some(BsdfSample { wi, f: tint * (fr / wi_l.z.abs()), pdf: fr, delta: true });
+            return Some(BsdfSample { wi, f: tint * (fr / wi_l.z.abs()), pdf: fr, delta: true, eta: 1.0 });
         }
         let wi_l = refract(wo_l, n_l, etap)?;
         let wi = self.frame.to_world(wi_l);
@@ -309,7 +313,7 @@ impl Bsdf {
             TransportMode::Radiance => 1.0 / (etap * etap),
             TransportMode::Importance => 1.0,
         };
-        Some(BsdfSample { wi, f: tint * (tr * scale / wi_l.z.abs()), pdf: tr, delta: true })
+        Some(BsdfSample { wi, f: tint * (tr * scale / wi_l.z.abs()), pdf: tr, delta: true, eta: etap })
     }
 }
 
