@@ -8,6 +8,7 @@ pub mod photons;
 
 use crate::Rgb;
 use crate::camera::Camera;
+use crate::geometry::mesh::Normals;
 use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
 use crate::light::{Light, LightSet};
@@ -162,9 +163,10 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
             Object::Triangle { vertices, emission, .. } => {
                 push(Shape::Triangle(Triangle::new(vertices[0], vertices[1], vertices[2])), emission)
             }
-            Object::Mesh { file, transform, emission, .. } => {
+            Object::Mesh { file, transform, emission, smooth, crease_angle, .. } => {
                 let path = scene.base_dir.join(file);
-                let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix()).map_err(|source| {
+                let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
+                let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals).map_err(|source| {
                     SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
                 })?;
                 let mesh_index = meshes.len() as u32;
