@@ -398,7 +398,9 @@ fn first_bad_line(text: &str) -> Option<(usize, String)> {
                 let count = if min == max { format!("{min}") } else { format!("{min} to {max}") };
                 Some(format!("`{tag}` needs {count} numbers ({what}), found `{}`", rest.join(" ")))
             } else {
-                None
+                // `nan` and `inf` parse as numbers: name them here, where the line is known.
+                let not_finite = rest.iter().find(|w| !w.parse::<f32>().is_ok_and(f32::is_finite));
+                not_finite.map(|w| format!("`{tag}`: `{w}` is not finite"))
             }
         };
         let error = match tag {
@@ -543,6 +545,8 @@ mod tests {
         for bad in [
             "v 1 2",
             "v 1 x 3",
+            "v 1 nan 3",
+            "vn inf 0 1",
             "vn 0 1",
             "vt",
             "f 1 2",
