@@ -236,6 +236,8 @@ fn out_of_range_values_name_the_field() {
             "objects[0].transform.scale",
             "non-zero",
         ),
+        (object("type = \"mesh\"\nfile = \"a.obj\"\ncrease_angle = 200\n"), "objects[0].crease_angle", "0 to 180"),
+        (object("type = \"mesh\"\nfile = \"a.obj\"\ncrease_angle = -1\n"), "objects[0].crease_angle", "0 to 180"),
     ];
     for (text, field, expected) in cases {
         assert_names(&parse_err(&text), &[field, expected]);

@@ -7,10 +7,13 @@
 //! material = "gold"
 //! transform = { translate = [0.0, 0.0, 0.0], rotate = [0.0, 45.0, 0.0], scale = 0.5 }
 //! ```
-//! Polygons are triangulated; normals and UVs are kept when the file has them, and smooth (area-weighted)
-//! vertex normals are computed when it does not. The OBJ's own materials are ignored.
+//! Polygons are triangulated by ear clipping in their plane, so concave faces keep their shape; a polygon whose
+//! vertices leave its plane is warned about with its file and line. A `#` starts a comment on any line. Normals
+//! and UVs are kept when the file has them, and smooth (area-weighted) vertex normals are computed when it does
+//! not. The OBJ's own materials are ignored. Every parse error names its line.
 
 use crate::geometry::MeshShading;
+use crate::math::fmath;
 use glam::{Affine3A, Vec3, Vec3A};
 use std::path::{Path, PathBuf};
 
@@ -46,22 +49,70 @@ pub struct MeshData {
     pub shading: MeshShading,
 }
 
-/// Loads an OBJ file and places it in the world with `world_from_object`.
-pub fn load_obj(file: &Path, world_from_object: &Affine3A) -> Result<MeshData, MeshError> {
-    let text = std::fs::read_to_string(file).map_err(|source| MeshError::Io { file: file.into(), source })?;
-    parse_obj(&text, file, world_from_object)
+/// How a mesh's shading normals are made.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Normals {
+    /// The file's normals when it has them; otherwise smooth normals, averaged (area-weighted) only over the
+    /// faces around a vertex whose normals are within `crease_angle` degrees of the face's own, so that a
+    /// sharp edge stays sharp.
+    Smooth {
+        /// Largest angle between two faces' normals, in degrees, across which shading is smoothed.
+        crease_angle: f32,
+    },
+    /// No shading normals: every face shades with its geometric normal, even when the file has normals.
+    Flat,
 }
 
-/// Parses OBJ text; `file` names it in errors.
-pub fn parse_obj(text: &str, file: &Path, world_from_object: &Affine3A) -> Result<MeshData, MeshError> {
+impl Normals {
+    /// The default crease angle, in degrees.
+    pub const DEFAULT_CREASE_ANGLE: f32 = 30.0;
+}
+
+impl Default for Normals {
+    fn default() -> Self {
+        Normals::Smooth { crease_angle: Self::DEFAULT_CREASE_ANGLE }
+    }
+}
+
+/// Loads an OBJ file and places it in the world with `world_from_object`.
+pub fn load_obj(file: &Path, world_from_object: &Affine3A, normals: Normals) -> Result<MeshData, MeshError> {
+    let text = std::fs::read_to_string(file).map_err(|source| MeshError::Io { file: file.into(), source })?;
+    parse_obj(&text, file, world_from_object, normals)
+}
+
+/// Parses OBJ text; `file` names it in errors and warnings.
+pub fn parse_obj(
+    text: &str,
+    file: &Path,
+    world_from_object: &Affine3A,
+    normals: Normals,
+) -> Result<MeshData, MeshError> {
     let malformed = |line: Option<usize>, message: String| MeshError::Malformed { file: file.into(), line, message };
-    let options = tobj::LoadOptions { triangulate: true, single_index: false, ignore_points: true, ignore_lines: true };
+    // A `#` starts a comment on any line (tobj accepts one only where a statement ignores extra words). Stripping
+    // keeps every line in its place, so line numbers stay those of the file.
+    let text = strip_comments(text);
+    let text = text.as_str();
+    // tobj names no line in its errors: find the first bad statement ourselves, before tobj sees it.
+    if let Some((line, message)) = first_bad_line(text) {
+        return Err(malformed(Some(line), message));
+    }
+    // Polygons are kept whole (tobj's triangulation is a fan, right only for convex faces) and ear-clipped below.
+    let options =
+        tobj::LoadOptions { triangulate: false, single_index: false, ignore_points: true, ignore_lines: true };
     let mut reader = std::io::BufReader::new(text.as_bytes());
     let (models, _) = tobj::load_obj_buf(&mut reader, &options, |_| Err(tobj::LoadError::OpenFileFailed))
-        .map_err(|e| malformed(first_bad_line(text), e.to_string()))?;
+        .map_err(|e| malformed(None, e.to_string()))?;
     if models.iter().all(|m| m.mesh.indices.is_empty()) {
         return Err(malformed(None, "no faces".into()));
     }
+    // The line of each face, in file order (tobj's models and their faces keep that order).
+    let face_lines: Vec<usize> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.split_whitespace().next() == Some("f"))
+        .map(|(i, _)| i + 1)
+        .collect();
+    let mut face_number = 0usize;
     let normal_from_object = world_from_object.matrix3.inverse().transpose();
     let mut out = MeshData::default();
     let sh = &mut out.shading;
@@ -70,59 +121,90 @@ pub fn parse_obj(text: &str, file: &Path, world_from_object: &Affine3A) -> Resul
         let base_pos = out.triangles.len();
         let positions: Vec<Vec3> = m.positions.chunks_exact(3).map(|p| Vec3::new(p[0], p[1], p[2])).collect();
         if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
-            return Err(malformed(nth_line_starting(text, "v ", i), format!("vertex {} is not finite", i + 1)));
+            return Err(malformed(nth_line_starting(text, "v", i), format!("vertex {} is not finite", i + 1)));
         }
         let world: Vec<Vec3> = positions.iter().map(|&p| world_from_object.transform_point3(p)).collect();
-        let tri_count = m.indices.len() / 3;
+        // Each triangle as three positions in `m.indices` (which also index the normal and UV indices).
+        let mut tris: Vec<[usize; 3]> = Vec::new();
+        let arities: Vec<usize> = if m.face_arities.is_empty() {
+            vec![3; m.indices.len() / 3]
+        } else {
+            m.face_arities.iter().map(|&a| a as usize).collect()
+        };
+        let mut start = 0usize;
+        for arity in arities {
+            let line = face_lines.get(face_number).copied();
+            face_number += 1;
+            let corners = start..start + arity;
+            start += arity;
+            let mut polygon = Vec::with_capacity(arity);
+            for c in corners.clone() {
+                let ix = m.indices.get(c).copied().unwrap_or(u32::MAX) as usize;
+                let p = positions.get(ix).ok_or_else(|| malformed(line, "face index out of bounds".into()))?;
+                polygon.push(*p);
+            }
+            let clipped = triangulate(&polygon);
+            if clipped.non_planarity > NON_PLANAR_TOLERANCE {
+                tracing::warn!(
+                    "{}:{}: non-planar polygon of {arity} vertices (a vertex is {:.1e} of the polygon's size off \
+                     its plane): its triangles follow the ear clipping in its mean plane",
+                    file.display(),
+                    line.unwrap_or(0),
+                    clipped.non_planarity
+                );
+            }
+            if !clipped.simple {
+                tracing::warn!(
+                    "{}:{}: polygon of {arity} vertices is not simple (it self-intersects or is degenerate): \
+                     part of it is triangulated as a fan",
+                    file.display(),
+                    line.unwrap_or(0)
+                );
+            }
+            tris.extend(clipped.triangles.iter().map(|t| t.map(|k| corners.start + k)));
+        }
         // A mirroring transform (negative determinant) reverses the winding; swapping two corners keeps the
         // outside outside (it decides the normals computed below, and which way emission faces).
-        let corners: [usize; 3] = if world_from_object.matrix3.determinant() < 0.0 { [0, 2, 1] } else { [0, 1, 2] };
-        for f in 0..tri_count {
-            let ix = corners.map(|k| m.indices[3 * f + k]);
-            let mut tri = [Vec3::ZERO; 3];
-            for k in 0..3 {
-                tri[k] = *world
-                    .get(ix[k] as usize)
-                    .ok_or_else(|| malformed(None, format!("face {} index out of range", f + 1)))?;
-            }
-            out.triangles.push(tri);
+        let order: [usize; 3] = if world_from_object.matrix3.determinant() < 0.0 { [0, 2, 1] } else { [0, 1, 2] };
+        let tris: Vec<[usize; 3]> = tris.iter().map(|t| order.map(|k| t[k])).collect();
+        for t in &tris {
+            out.triangles.push(t.map(|c| world[m.indices[c] as usize]));
         }
-        // Normals: the file's, else area-weighted smooth normals over shared positions.
+        // Normals: none when flat, else the file's, else smooth within the crease angle.
         let normal_base = sh.normals.len() as u32;
-        if !m.normals.is_empty() && m.normal_indices.len() == m.indices.len() {
-            for n in m.normals.chunks_exact(3) {
-                let wn = (normal_from_object * Vec3A::new(n[0], n[1], n[2])).normalize_or_zero();
-                sh.normals.push(wn.to_array());
-            }
-            for f in 0..tri_count {
-                sh.normal_indices.push(corners.map(|k| normal_base + m.normal_indices[3 * f + k]));
-            }
-        } else {
-            let mut acc = vec![Vec3A::ZERO; world.len()];
-            for f in 0..tri_count {
-                let t = &out.triangles[base_pos + f];
-                // The cross product's length is twice the area: area weighting for free.
-                let n = Vec3A::from((t[1] - t[0]).cross(t[2] - t[0]));
-                for k in 0..3 {
-                    acc[m.indices[3 * f + k] as usize] += n;
+        match normals {
+            Normals::Flat => {}
+            Normals::Smooth { .. } if !m.normals.is_empty() && m.normal_indices.len() == m.indices.len() => {
+                for n in m.normals.chunks_exact(3) {
+                    let wn = (normal_from_object * Vec3A::new(n[0], n[1], n[2])).normalize_or_zero();
+                    sh.normals.push(wn.to_array());
+                }
+                for t in &tris {
+                    sh.normal_indices.push(t.map(|c| normal_base + m.normal_indices[c]));
                 }
             }
-            sh.normals.extend(acc.iter().map(|n| n.normalize_or_zero().to_array()));
-            for f in 0..tri_count {
-                sh.normal_indices.push(corners.map(|k| normal_base + m.indices[3 * f + k]));
+            Normals::Smooth { crease_angle } => {
+                let faces = &out.triangles[base_pos..];
+                let corner_positions: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|c| m.indices[c])).collect();
+                let computed = crease_normals(faces, &corner_positions, world.len(), crease_angle);
+                for (f, corner_normals) in computed.iter().enumerate() {
+                    sh.normals.extend(corner_normals.iter().map(|n| n.to_array()));
+                    let first = normal_base + 3 * f as u32;
+                    sh.normal_indices.push([first, first + 1, first + 2]);
+                }
             }
         }
         if !m.texcoords.is_empty() && m.texcoord_indices.len() == m.indices.len() {
             let uv_base = sh.uvs.len() as u32;
             sh.uvs.extend(m.texcoords.chunks_exact(2).map(|t| [t[0], t[1]]));
-            for f in 0..tri_count {
-                sh.uv_indices.push(corners.map(|k| uv_base + m.texcoord_indices[3 * f + k]));
+            for t in &tris {
+                sh.uv_indices.push(t.map(|c| uv_base + m.texcoord_indices[c]));
             }
         }
     }
-    if !sh.uv_indices.is_empty() && sh.uv_indices.len() != sh.normal_indices.len() {
+    if !sh.uv_indices.is_empty() && sh.uv_indices.len() != out.triangles.len() {
         // Some parts of the mesh have UVs and others do not: give the others zeros so indices stay aligned.
-        let missing = sh.normal_indices.len() - sh.uv_indices.len();
+        let missing = out.triangles.len() - sh.uv_indices.len();
         let zero = sh.uvs.len() as u32;
         sh.uvs.push([0.0, 0.0]);
         sh.uv_indices.splice(0..0, std::iter::repeat_n([zero; 3], missing));
@@ -130,57 +212,250 @@ pub fn parse_obj(text: &str, file: &Path, world_from_object: &Affine3A) -> Resul
     Ok(out)
 }
 
-/// The line of the `n`-th (0-based) statement that starts with `prefix`.
-fn nth_line_starting(text: &str, prefix: &str, n: usize) -> Option<usize> {
-    text.lines().enumerate().filter(|(_, l)| l.trim_start().starts_with(prefix)).nth(n).map(|(i, _)| i + 1)
+/// Smooth normals at the corners of `faces` (world space; `corners` gives each corner's position index, of
+/// `positions` in all): at each corner, the area-weighted sum of the normals of the faces around that position
+/// that lie within `crease_angle` degrees of this face (the face itself always counts). Across a sharper edge
+/// each side keeps its own normal: averaging across a cube's 90° edges tilts the shading normal 35° off the
+/// geometric one, and refraction with it loses energy (issue 16's black glass cube).
+fn crease_normals(faces: &[[Vec3; 3]], corners: &[[u32; 3]], positions: usize, crease_angle: f32) -> Vec<[Vec3A; 3]> {
+    // Twice the area times the unit normal, and the unit normal (zero for a face without area).
+    let weighted: Vec<Vec3A> =
+        faces.iter().map(|t| fmath::cross(Vec3A::from(t[1] - t[0]), Vec3A::from(t[2] - t[0]))).collect();
+    let unit: Vec<Vec3A> =
+        weighted.iter().map(|&n| if n.length_squared() > 0.0 { fmath::normalize(n) } else { Vec3A::ZERO }).collect();
+    let cos_crease = fmath::cos(crease_angle.to_radians());
+    // The faces around each position, in face order (so the sums below add in a fixed order).
+    let mut start = vec![0u32; positions + 1];
+    for c in corners.iter().flatten() {
+        start[*c as usize + 1] += 1;
+    }
+    for i in 0..positions {
+        start[i + 1] += start[i];
+    }
+    let mut fill = start.clone();
+    let mut around = vec![0u32; corners.len() * 3];
+    for (f, t) in corners.iter().enumerate() {
+        for &c in t {
+            around[fill[c as usize] as usize] = f as u32;
+            fill[c as usize] += 1;
+        }
+    }
+    corners
+        .iter()
+        .enumerate()
+        .map(|(f, t)| {
+            t.map(|c| {
+                let faces_here = &around[start[c as usize] as usize..start[c as usize + 1] as usize];
+                let sum = faces_here
+                    .iter()
+                    .map(|&g| g as usize)
+                    .filter(|&g| g == f || unit[g].dot(unit[f]) >= cos_crease)
+                    .fold(Vec3A::ZERO, |acc, g| acc + weighted[g]);
+                if sum.length_squared() > 0.0 { fmath::normalize(sum) } else { unit[f] }
+            })
+        })
+        .collect()
 }
 
-/// Finds the first line that tobj would reject, by checking each statement's shape: `v`/`vn` need three
-/// numbers, `vt` one to three, `f` at least three references within the counts seen so far.
-fn first_bad_line(text: &str) -> Option<usize> {
+/// The text with everything from a `#` to the end of its line removed; the lines stay where they were.
+fn strip_comments(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for line in text.lines() {
+        out.push_str(line.split('#').next().unwrap_or(""));
+        out.push('\n');
+    }
+    out
+}
+
+/// Largest distance of a polygon's vertex from its mean plane, as a fraction of its size, below which it counts
+/// as planar (f32 positions written with six or seven digits stay well below it).
+const NON_PLANAR_TOLERANCE: f64 = 1e-3;
+
+/// The triangles of one polygon.
+#[derive(Debug, PartialEq)]
+pub(crate) struct Triangulation {
+    /// Corner triples, as indices into the polygon, each with the polygon's winding.
+    pub triangles: Vec<[usize; 3]>,
+    /// Largest distance of a vertex from the mean plane, over the polygon's size (its bounding-box diagonal).
+    pub non_planarity: f64,
+    /// False when ear clipping ran out of ears (a self-intersecting or degenerate polygon), and the rest was
+    /// triangulated as a fan.
+    pub simple: bool,
+}
+
+/// Triangulates a polygon by ear clipping (Meisters 1975; Eberly, "Triangulation by ear clipping") in its
+/// plane: the plane of Newell's normal, projected along its dominant axis. Works in f64, so it decides the
+/// same on every platform and rounds less. A triangle is emitted as it stands; a vertex that is collinear with
+/// its neighbours is never an ear, so no zero-area triangle comes out of a simple polygon. A convex polygon
+/// gives the fan from its first vertex.
+pub(crate) fn triangulate(polygon: &[Vec3]) -> Triangulation {
+    let n = polygon.len();
+    let p: Vec<[f64; 3]> = polygon.iter().map(|v| [f64::from(v.x), f64::from(v.y), f64::from(v.z)]).collect();
+    // Newell's normal: twice the vector area, robust for concave and slightly non-planar polygons.
+    let mut normal = [0.0f64; 3];
+    for i in 0..n {
+        let (a, b) = (p[i], p[(i + 1) % n]);
+        normal[0] += (a[1] - b[1]) * (a[2] + b[2]);
+        normal[1] += (a[2] - b[2]) * (a[0] + b[0]);
+        normal[2] += (a[0] - b[0]) * (a[1] + b[1]);
+    }
+    let non_planarity = non_planarity(&p, normal);
+    if n == 3 {
+        return Triangulation { triangles: vec![[0, 1, 2]], non_planarity, simple: true };
+    }
+    // Project along the dominant axis, keeping the other two in cyclic order: the polygon then winds
+    // counter-clockwise in 2D exactly when the normal's dominant component is positive.
+    let axis = if normal[0].abs() > normal[1].abs() && normal[0].abs() > normal[2].abs() {
+        0
+    } else if normal[1].abs() > normal[2].abs() {
+        1
+    } else {
+        2
+    };
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let sign = if normal[axis] < 0.0 { -1.0 } else { 1.0 };
+    let q: Vec<[f64; 2]> = p.iter().map(|c| [c[u], c[v]]).collect();
+    // Twice the signed area of (a, b, c), positive when it turns the polygon's way.
+    let turn = |a: usize, b: usize, c: usize| {
+        let (a, b, c) = (q[a], q[b], q[c]);
+        sign * ((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]))
+    };
+    let mut left: Vec<usize> = (0..n).collect();
+    let mut triangles = Vec::with_capacity(n - 2);
+    let mut simple = true;
+    while left.len() > 3 {
+        let k = left.len();
+        // Starting at the second vertex makes a convex polygon come out as the fan from its first vertex, the
+        // triangulation tobj (and so earlier versions of this loader) gave it.
+        let ear = (1..k).chain(0..1).find(|&i| {
+            let (a, b, c) = (left[(i + k - 1) % k], left[i], left[(i + 1) % k]);
+            // Convex corner, and no other remaining vertex inside or on the triangle (a vertex at one of its
+            // corners, a duplicate, does not block it).
+            turn(a, b, c) > 0.0
+                && left.iter().all(|&r| {
+                    r == a
+                        || r == b
+                        || r == c
+                        || q[r] == q[a]
+                        || q[r] == q[b]
+                        || q[r] == q[c]
+                        || !(turn(a, b, r) >= 0.0 && turn(b, c, r) >= 0.0 && turn(c, a, r) >= 0.0)
+                })
+        });
+        let Some(i) = ear else {
+            // No ear: the polygon is not simple. Fan the rest, which at least covers it.
+            simple = false;
+            for j in 1..k - 1 {
+                triangles.push([left[0], left[j], left[j + 1]]);
+            }
+            return Triangulation { triangles, non_planarity, simple };
+        };
+        triangles.push([left[(i + k - 1) % k], left[i], left[(i + 1) % k]]);
+        left.remove(i);
+    }
+    triangles.push([left[0], left[1], left[2]]);
+    Triangulation { triangles, non_planarity, simple }
+}
+
+/// Largest distance of a point from the plane through the centroid with normal `normal`, over the diagonal of
+/// the points' bounding box; 0 for a degenerate polygon (no normal or no extent).
+fn non_planarity(p: &[[f64; 3]], normal: [f64; 3]) -> f64 {
+    let len = (normal[0] * normal[0] + normal[1] * normal[1] + normal[2] * normal[2]).sqrt();
+    let count = p.len() as f64;
+    let centroid = [0, 1, 2].map(|k| p.iter().map(|c| c[k]).sum::<f64>() / count);
+    let lo = [0, 1, 2].map(|k| p.iter().map(|c| c[k]).fold(f64::INFINITY, f64::min));
+    let hi = [0, 1, 2].map(|k| p.iter().map(|c| c[k]).fold(f64::NEG_INFINITY, f64::max));
+    let size = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2)).sqrt();
+    if len == 0.0 || size == 0.0 || !len.is_finite() || !size.is_finite() {
+        return 0.0;
+    }
+    let off = p
+        .iter()
+        .map(|c| {
+            ((c[0] - centroid[0]) * normal[0] + (c[1] - centroid[1]) * normal[1] + (c[2] - centroid[2]) * normal[2])
+                .abs()
+        })
+        .fold(0.0, f64::max);
+    off / len / size
+}
+
+/// The line of the `n`-th (0-based) statement that starts with `prefix`.
+fn nth_line_starting(text: &str, tag: &str, n: usize) -> Option<usize> {
+    text.lines().enumerate().filter(|(_, l)| l.split_whitespace().next() == Some(tag)).nth(n).map(|(i, _)| i + 1)
+}
+
+/// The first line that tobj would reject (1-based), and what is wrong with it, by checking each statement's
+/// shape: `v`/`vn` need three numbers (`v` may add a weight or a colour), `vt` one to three, `f` at least three
+/// references within the counts seen so far. `text` has no comments left.
+fn first_bad_line(text: &str) -> Option<(usize, String)> {
     let (mut nv, mut nt, mut nn) = (0i64, 0i64, 0i64);
     for (i, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         let Some(tag) = words.next() else { continue };
         let rest: Vec<&str> = words.collect();
-        let numbers_ok = |min: usize, max: usize| {
-            rest.len() >= min && rest.len() <= max && rest.iter().all(|w| w.parse::<f32>().is_ok())
+        let numbers = |min: usize, max: usize, what: &str| {
+            if rest.len() < min || rest.len() > max || rest.iter().any(|w| w.parse::<f32>().is_err()) {
+                let count = if min == max { format!("{min}") } else { format!("{min} to {max}") };
+                Some(format!("`{tag}` needs {count} numbers ({what}), found `{}`", rest.join(" ")))
+            } else {
+                // `nan` and `inf` parse as numbers: name them here, where the line is known.
+                let not_finite = rest.iter().find(|w| !w.parse::<f32>().is_ok_and(f32::is_finite));
+                not_finite.map(|w| format!("`{tag}`: `{w}` is not finite"))
+            }
         };
-        let ok = match tag {
+        let error = match tag {
             "v" => {
                 nv += 1;
-                numbers_ok(3, 7)
+                numbers(3, 7, "a position, then an optional weight or colour")
             }
             "vt" => {
                 nt += 1;
-                numbers_ok(1, 3)
+                numbers(1, 3, "a texture coordinate")
             }
             "vn" => {
                 nn += 1;
-                numbers_ok(3, 3)
+                numbers(3, 3, "a normal")
             }
             "f" => {
-                rest.len() >= 3
-                    && rest.iter().all(|w| {
-                        let parts: Vec<&str> = w.split('/').collect();
-                        let counts = [nv, nt, nn];
-                        !parts.is_empty()
-                            && parts.len() <= 3
-                            && parts.iter().enumerate().all(|(k, p)| {
-                                if p.is_empty() {
-                                    return k > 0;
-                                }
-                                match p.parse::<i64>() {
-                                    Ok(ix) => ix != 0 && ix.abs() <= counts[k],
-                                    Err(_) => false,
-                                }
-                            })
-                    })
+                if rest.len() < 3 {
+                    Some(format!("a face needs at least three vertices, found {}", rest.len()))
+                } else {
+                    rest.iter().find_map(|w| face_vertex_error(w, [nv, nt, nn]))
+                }
             }
-            _ => true,
+            _ => None,
         };
-        if !ok {
-            return Some(i + 1);
+        if let Some(message) = error {
+            return Some((i + 1, message));
+        }
+    }
+    None
+}
+
+/// What is wrong with one `f` reference `v`, `v/vt`, `v//vn` or `v/vt/vn`, given how many positions, texture
+/// coordinates and normals precede it; `None` if it is fine.
+fn face_vertex_error(word: &str, counts: [i64; 3]) -> Option<String> {
+    const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
+    let parts: Vec<&str> = word.split('/').collect();
+    if parts.len() > 3 {
+        return Some(format!("face vertex `{word}` has more than three parts"));
+    }
+    for (k, part) in parts.iter().enumerate() {
+        if part.is_empty() {
+            if k == 0 {
+                return Some(format!("face vertex `{word}` has no position index"));
+            }
+            continue;
+        }
+        match part.parse::<i64>() {
+            Ok(ix) if ix != 0 && ix.abs() <= counts[k] => {}
+            Ok(ix) => {
+                let (kind, count) = (KINDS[k], counts[k]);
+                return Some(format!(
+                    "face vertex `{word}`: {kind} index {ix} is out of bounds (1 to {count}, or -1 to -{count})"
+                ));
+            }
+            Err(_) => return Some(format!("face vertex `{word}`: `{part}` is not an index")),
         }
     }
     None
@@ -194,7 +469,7 @@ mod tests {
 
     #[test]
     fn quad_is_triangulated_with_smooth_normals_and_uvs() {
-        let m = parse_obj(QUAD, Path::new("quad.obj"), &Affine3A::IDENTITY).unwrap();
+        let m = parse_obj(QUAD, Path::new("quad.obj"), &Affine3A::IDENTITY, Normals::default()).unwrap();
         assert_eq!(m.triangles.len(), 2);
         assert_eq!(m.shading.uv_indices.len(), 2);
         for n in &m.shading.normals {
@@ -209,7 +484,7 @@ mod tests {
             glam::Quat::from_rotation_x(-std::f32::consts::FRAC_PI_2),
             Vec3::new(0.0, 1.0, 0.0),
         );
-        let m = parse_obj(QUAD, Path::new("quad.obj"), &xf).unwrap();
+        let m = parse_obj(QUAD, Path::new("quad.obj"), &xf, Normals::default()).unwrap();
         let t = m.triangles[0];
         assert!((t[1] - Vec3::new(2.0, 1.0, 0.0)).length() < 1e-5);
         // +z rotated by −90° about x becomes +y.
@@ -220,7 +495,7 @@ mod tests {
     fn mirroring_keeps_the_outside_outside() {
         // The quad faces +z; mirrored in z it must face −z, with the computed normals agreeing.
         let xf = Affine3A::from_scale(Vec3::new(1.0, 1.0, -1.0));
-        let m = parse_obj(QUAD, Path::new("quad.obj"), &xf).unwrap();
+        let m = parse_obj(QUAD, Path::new("quad.obj"), &xf, Normals::default()).unwrap();
         let t = m.triangles[0];
         let n = (t[1] - t[0]).cross(t[2] - t[0]).normalize();
         assert!((n - Vec3::NEG_Z).length() < 1e-6, "{n}");
@@ -232,10 +507,199 @@ mod tests {
     #[test]
     fn malformed_obj_names_the_line() {
         let bad = "v 0 0 0\nv 1 0 0\nv 1 x 0\nf 1 2 3\n";
-        let e = parse_obj(bad, Path::new("bad.obj"), &Affine3A::IDENTITY).unwrap_err().to_string();
+        let e = parse_obj(bad, Path::new("bad.obj"), &Affine3A::IDENTITY, Normals::default()).unwrap_err().to_string();
         assert!(e.contains("bad.obj:3"), "{e}");
         let oob = "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 9\n";
-        let e = parse_obj(oob, Path::new("oob.obj"), &Affine3A::IDENTITY).unwrap_err().to_string();
+        let e = parse_obj(oob, Path::new("oob.obj"), &Affine3A::IDENTITY, Normals::default()).unwrap_err().to_string();
         assert!(e.contains("oob.obj:4"), "{e}");
+    }
+
+    fn parse(text: &str) -> Result<MeshData, MeshError> {
+        parse_obj(text, Path::new("t.obj"), &Affine3A::IDENTITY, Normals::default())
+    }
+
+    fn area(t: &[Vec3; 3]) -> f64 {
+        f64::from((t[1] - t[0]).cross(t[2] - t[0]).length()) / 2.0
+    }
+
+    #[test]
+    fn comments_are_stripped_from_every_kind_of_line() {
+        let plain = "mtllib a.mtl\no quad\ng side\ns 1\nusemtl m\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+                     vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nf 1/1/1 2/2/1 3/3/1 4/4/1\nl 1 2\np 1\n";
+        let commented: String = plain.lines().map(|l| format!("{l} # note: 1 2 x / #\n")).collect();
+        let commented = format!("# header\n{commented}#\n");
+        let (a, b) = (parse(plain).unwrap(), parse(&commented).unwrap());
+        assert_eq!(a.triangles, b.triangles);
+        assert_eq!(a.shading.normals, b.shading.normals);
+        assert_eq!(a.shading.uvs, b.shading.uvs);
+        assert_eq!(b.triangles.len(), 2);
+        // A comment with no space before it.
+        let tight = "v 0 0 0#a\nv 1 0 0#b\nv 0 1 0#c\nf 1 2 3#d\n";
+        assert_eq!(parse(tight).unwrap().triangles.len(), 1);
+    }
+
+    #[test]
+    fn every_parse_error_names_its_line() {
+        let good: String = (0..13).map(|i| format!("v {i} 0 0\nv {i} 1 0\nv {i} 0 1 # vertex\n")).collect();
+        assert_eq!(good.lines().count(), 39);
+        for bad in [
+            "v 1 2",
+            "v 1 x 3",
+            "v 1 nan 3",
+            "vn inf 0 1",
+            "vn 0 1",
+            "vt",
+            "f 1 2",
+            "f 1 2 x",
+            "f 1 2 99",
+            "f 1 2 0",
+            "f 1/1 2 3",
+            "f 1//5 2 3",
+            "f 1/2/3/4 2 3",
+        ] {
+            let text = format!("{good}{bad} # a comment\nf 1 2 3\n");
+            let e = parse(&text).unwrap_err();
+            assert!(matches!(e, MeshError::Malformed { line: Some(40), .. }), "`{bad}`: {e}");
+            assert!(e.to_string().starts_with("t.obj:40: "), "`{bad}`: {e}");
+        }
+    }
+
+    /// The L shape of the issue: (1,0) (1,1) (0,1) (0,2) (−1,2) (−1,0), area 3, concave at (0,1).
+    const L_SHAPE: [[f32; 2]; 6] = [[1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 2.0], [-1.0, 2.0], [-1.0, 0.0]];
+
+    fn check_covers(polygon: &[Vec3], area_expected: f64) {
+        let t = triangulate(polygon);
+        assert!(t.simple);
+        assert_eq!(t.triangles.len(), polygon.len() - 2);
+        let tris: Vec<[Vec3; 3]> = t.triangles.iter().map(|c| c.map(|k| polygon[k])).collect();
+        let total: f64 = tris.iter().map(area).sum();
+        assert!((total - area_expected).abs() < 1e-6, "{total} vs {area_expected}");
+        // Every triangle winds as the polygon does (so none folds over another), hence they tile it.
+        let n = polygon_normal(polygon);
+        for tri in &tris {
+            assert!((tri[1] - tri[0]).cross(tri[2] - tri[0]).dot(n) > 0.0, "{tri:?}");
+        }
+    }
+
+    fn polygon_normal(polygon: &[Vec3]) -> Vec3 {
+        (0..polygon.len()).map(|i| polygon[i].cross(polygon[(i + 1) % polygon.len()])).sum()
+    }
+
+    #[test]
+    fn concave_polygons_are_ear_clipped() {
+        let l: Vec<Vec3> = L_SHAPE.iter().map(|p| Vec3::new(p[0], p[1], 0.0)).collect();
+        check_covers(&l, 3.0);
+        // No triangle reaches into the notch x ∈ (0, 1), y ∈ (1, 2).
+        for t in triangulate(&l).triangles {
+            let c = t.iter().map(|&k| l[k]).sum::<Vec3>() / 3.0;
+            assert!(!(c.x > 0.0 && c.y > 1.0), "{c}");
+        }
+        // Reversed winding, other planes, and every starting vertex.
+        for start in 0..6 {
+            let mut r = l.clone();
+            r.rotate_left(start);
+            check_covers(&r, 3.0);
+            r.reverse();
+            check_covers(&r, 3.0);
+            let yz: Vec<Vec3> = r.iter().map(|p| Vec3::new(5.0, p.x, p.y)).collect();
+            check_covers(&yz, 3.0);
+        }
+        let star = star(5, 1.0, 0.4);
+        // Ten triangles (centre, outer k, inner k) of area ½·1·0.4·sin 36° each.
+        let expected = 10.0 * 0.5 * 0.4 * (36f64.to_radians()).sin();
+        check_covers(&star, expected);
+    }
+
+    /// A star with `points` points of outer radius `r_out` and inner radius `r_in`, in z = 0.
+    fn star(points: usize, r_out: f32, r_in: f32) -> Vec<Vec3> {
+        (0..2 * points)
+            .map(|i| {
+                let a = std::f64::consts::PI * i as f64 / points as f64;
+                let r = if i % 2 == 0 { r_out } else { r_in };
+                Vec3::new(r * a.cos() as f32, r * a.sin() as f32, 0.0)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn convex_polygons_keep_the_fan() {
+        let hexagon: Vec<Vec3> = star(3, 1.0, 1.0);
+        assert_eq!(triangulate(&hexagon).triangles, vec![[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 5]]);
+    }
+
+    #[test]
+    fn non_planar_polygons_are_measured() {
+        let flat = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        assert!(triangulate(&flat).non_planarity < 1e-9);
+        let bent = [Vec3::ZERO, Vec3::X, Vec3::new(1.0, 1.0, 0.5), Vec3::Y];
+        assert!(triangulate(&bent).non_planarity > NON_PLANAR_TOLERANCE);
+    }
+
+    /// A unit cube without normals, six quads facing out.
+    const CUBE: &str = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n\
+                        f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 4 8 7 3\nf 1 5 8 4\nf 2 3 7 6\n";
+
+    fn shading_normals(text: &str, normals: Normals) -> Vec<(Vec3, [Vec3; 3])> {
+        let m = parse_obj(text, Path::new("t.obj"), &Affine3A::IDENTITY, normals).unwrap();
+        let sh = &m.shading;
+        m.triangles
+            .iter()
+            .zip(&sh.normal_indices)
+            .map(|(t, ix)| {
+                ((t[1] - t[0]).cross(t[2] - t[0]).normalize(), ix.map(|i| Vec3::from(sh.normals[i as usize])))
+            })
+            .collect()
+    }
+
+    #[test]
+    fn crease_angle_keeps_sharp_edges_sharp() {
+        // 90° edges: every corner's normal is its face's normal.
+        for (n, corners) in shading_normals(CUBE, Normals::default()) {
+            for c in corners {
+                assert!((c - n).length() < 1e-6, "{c} vs {n}");
+            }
+        }
+        // Smoothed across every edge (area-weighted over the triangles at the corner), a corner leans off its face.
+        for (n, corners) in shading_normals(CUBE, Normals::Smooth { crease_angle: 180.0 }) {
+            for c in corners {
+                assert!(c.dot(n) > 0.4 && c.dot(n) < 0.9, "{c} vs {n}");
+            }
+        }
+        // Flat: no shading normals at all.
+        let m = parse_obj(CUBE, Path::new("t.obj"), &Affine3A::IDENTITY, Normals::Flat).unwrap();
+        assert!(m.shading.normal_indices.is_empty());
+    }
+
+    #[test]
+    fn crease_angle_smooths_shallow_edges() {
+        // Two faces folded by 20° along x = 0: within 30° their shared corners share the mean normal.
+        let a = 10f32.to_radians();
+        let text = format!(
+            "v 0 0 0\nv 0 1 0\nv 1 0 {z}\nv 1 1 {z}\nv -1 0 {z}\nv -1 1 {z}\nf 1 3 4 2\nf 5 1 2 6\n",
+            z = fmath::tan(a)
+        );
+        let normals = shading_normals(&text, Normals::default());
+        let mut at_edge = Vec::new();
+        for (n, corners) in &normals {
+            for c in corners {
+                let angle = fmath::acos(c.dot(*n).clamp(-1.0, 1.0)).to_degrees();
+                // The outer corners keep the face normal; those on the fold lean towards the other face.
+                assert!(angle < 0.1 || (angle > 1.0 && angle < 19.0), "{angle}");
+                if angle > 1.0 {
+                    at_edge.push(*c);
+                }
+            }
+        }
+        // Each fold vertex has one normal, on its three corners in both faces: shading is continuous across it.
+        assert_eq!(at_edge.len(), 6);
+        for c in &at_edge {
+            assert_eq!(at_edge.iter().filter(|d| (**d - *c).length() < 1e-6).count(), 3, "{at_edge:?}");
+        }
+        // Smooth shading does not cross a 20° fold with a 10° crease angle.
+        for (n, corners) in shading_normals(&text, Normals::Smooth { crease_angle: 10.0 }) {
+            for c in corners {
+                assert!((c - n).length() < 1e-6);
+            }
+        }
     }
 }

@@ -84,36 +84,63 @@ pub struct LocalHit {
 
 impl Sphere {
     /// Distance along `ray` to the closest hit in `(0, tmax)`.
+    ///
+    /// The numerically stable form of Haines et al. ("Precision Improvements for Ray/Sphere Intersection",
+    /// Ray Tracing Gems, ch. 7), evaluated in f64. In f32 the term `|o − c|² − r²` loses everything when the
+    /// origin lies on a large sphere: for a floor of radius 1000 it is a difference of two numbers near 10⁶
+    /// whose f32 spacing is 0.06, so a shadow ray leaving the floor 10⁻⁶ above it found the floor again
+    /// (acne, 30 % too dark). In f64 the differences of f32 inputs are exact and the products carry 29 more bits:
+    /// the sign of `|o − c|² − r²` is right for an origin 10⁻⁶ off a sphere of radius 10⁶. f64 arithmetic is
+    /// IEEE on every target, so every architecture gives the same `t`.
     #[inline]
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
-        // Numerically stable form (Haines et al., "Precision Improvements for Ray/Sphere Intersection", RTG ch. 7).
-        let c = Vec3A::from(self.center);
-        let f = ray.o - c;
-        let a = ray.d.length_squared();
-        let b = -f.dot(ray.d);
-        let l = f + (b / a) * ray.d;
-        let disc = self.radius * self.radius - l.length_squared();
+        let o = ray.o.to_array().map(f64::from);
+        let d = ray.d.to_array().map(f64::from);
+        let c = self.center.to_array().map(f64::from);
+        let r = f64::from(self.radius);
+        let f = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let a = dot(d, d);
+        let b = -dot(f, d);
+        // l: from the centre to the point of the line closest to it; r² − |l|² is the discriminant over a.
+        let s = b / a;
+        let l = [f[0] + s * d[0], f[1] + s * d[1], f[2] + s * d[2]];
+        let disc = r * r - dot(l, l);
         if disc < 0.0 {
             return None;
         }
-        let c_term = f.length_squared() - self.radius * self.radius;
+        let c_term = dot(f, f) - r * r;
         let q = b + b.signum() * (a * disc).sqrt();
         let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c_term / q, q / a) };
         let (t0, t1) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-        if t0 > 0.0 && t0 < tmax {
-            Some(t0)
-        } else if t1 > 0.0 && t1 < tmax {
-            Some(t1)
+        let tmax = f64::from(tmax);
+        // A root that rounds to 0 in f32 is no hit: the ray starts on the surface.
+        let hit = |t: f64| t > 0.0 && t < tmax && (t as f32) > 0.0;
+        if hit(t0) {
+            Some(t0 as f32)
+        } else if hit(t1) {
+            Some(t1 as f32)
         } else {
             None
         }
     }
 
-    fn local_hit(&self, p: Vec3A) -> LocalHit {
-        let c = Vec3A::from(self.center);
-        let n = fmath::normalize(p - c);
-        // Re-project onto the surface so the offset origin of the next ray is reliable.
-        let p = c + n * self.radius;
+    /// The hit of `ray` at distance `t`, projected onto the sphere in f64 so that its f32 coordinates are the
+    /// surface point rounded once: within half an ulp of each coordinate of the true surface, which is the
+    /// error [`crate::math::offset_ray_origin`] offsets by. (Projecting as `c + n·r` in f32 instead puts the
+    /// point up to an ulp of |c| + r off the surface: 0.06 for a floor of radius 10⁶, far beyond the offset.)
+    fn local_hit(&self, ray: &Ray, t: f32) -> LocalHit {
+        let o = ray.o.to_array().map(f64::from);
+        let d = ray.d.to_array().map(f64::from);
+        let c = self.center.to_array().map(f64::from);
+        let t = f64::from(t);
+        let v = [o[0] + t * d[0] - c[0], o[1] + t * d[1] - c[1], o[2] + t * d[2] - c[2]];
+        let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        // A hit has |v| ≈ r > 0; the guard keeps a degenerate ray from dividing by zero.
+        let unit = if len > 0.0 { v.map(|x| x / len) } else { [0.0, 1.0, 0.0] };
+        let r = f64::from(self.radius);
+        let p = Vec3A::new((c[0] + unit[0] * r) as f32, (c[1] + unit[1] * r) as f32, (c[2] + unit[2] * r) as f32);
+        let n = Vec3A::new(unit[0] as f32, unit[1] as f32, unit[2] as f32);
         let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
         let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
         LocalHit { p, n, uv: Vec2::new(u, v) }
@@ -382,10 +409,9 @@ impl Shape {
 
     /// Surface data of the hit at distance `t` (found by [`Shape::intersect`] with the same `ray`).
     pub fn local_hit(&self, ray: &Ray, t: f32) -> LocalHit {
-        let p = ray.at(t);
         match self {
-            Shape::Sphere(s) => s.local_hit(p),
-            Shape::Rect(r) => r.local_hit(p),
+            Shape::Sphere(s) => s.local_hit(ray, t),
+            Shape::Rect(r) => r.local_hit(ray.at(t)),
             Shape::Triangle(tri) => tri.local_hit(ray, f32::INFINITY, t),
         }
     }
@@ -422,6 +448,67 @@ mod tests {
 
     fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
         Ray::new(Vec3A::from_array(o), fmath::normalize(Vec3A::from_array(d)))
+    }
+
+    /// Closest hit of the line `o + t·d` with the sphere, from the textbook quadratic in f64 on the same f32
+    /// inputs: far more precise than f32 for the cases below (its cancellation costs at most 10⁻⁸ relative).
+    fn reference_t(s: &Sphere, r: &Ray) -> Option<f64> {
+        let (o, d, c) = (r.o.as_dvec3(), r.d.as_dvec3(), Vec3A::from(s.center).as_dvec3());
+        let f = o - c;
+        let a = d.length_squared();
+        let b = f.dot(d);
+        let disc = b * b - a * (f.length_squared() - f64::from(s.radius).powi(2));
+        (disc >= 0.0).then(|| (-b - disc.sqrt()) / a).filter(|&t| t > 0.0)
+    }
+
+    #[test]
+    fn sphere_closest_hit_matches_f64_for_rays_from_far_away() {
+        let mut rng = crate::math::rng::Sampler::new(7, crate::math::rng::Domain::Photon, 0, 0, 0);
+        for radius in [1e-3f32, 1e-1, 1.0, 10.0, 1e3, 1e6] {
+            for far in [2.0f32, 1e2, 1e4] {
+                for k in 0..200 {
+                    let center = Vec3::new(0.3, -radius, 0.7) * if k % 2 == 0 { 1.0 } else { 10.0 };
+                    let s = Sphere { center, radius };
+                    // From a point `far` radii away, towards a random point of the sphere's front half.
+                    let dir = crate::math::uniform_sphere(rng.next_2d());
+                    let o = Vec3A::from(center) + dir * (far * radius);
+                    let target = Vec3A::from(center) + radius * crate::math::uniform_sphere(rng.next_2d());
+                    let r = Ray::new(o, fmath::normalize(target - o));
+                    let (Some(t), Some(t_ref)) = (s.intersect(&r, f32::INFINITY), reference_t(&s, &r)) else {
+                        continue;
+                    };
+                    // The f32 result is the f64 root rounded once (half an ulp), plus the reference's own error.
+                    let rel = (f64::from(t) - t_ref).abs() / t_ref;
+                    assert!(rel < 1e-7, "r = {radius}, {far} radii away: t = {t}, reference {t_ref}, rel {rel:e}");
+                    // The hit point lies on the sphere to within the rounding of its coordinates.
+                    let p = s.local_hit(&r, t).p.as_dvec3();
+                    let off = (p - Vec3A::from(center).as_dvec3()).length() - f64::from(radius);
+                    let ulp = f64::from(p.abs().max_element() as f32) * f64::from(f32::EPSILON);
+                    assert!(off.abs() <= 2.0 * ulp, "r = {radius}: {off:e} off the surface, ulp {ulp:e}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn ray_leaving_a_large_sphere_does_not_hit_it_again() {
+        // A floor sphere of radius R under the origin; rays leave points of it upwards (the shadow rays of
+        // issue 16) and must miss it.
+        let mut rng = crate::math::rng::Sampler::new(9, crate::math::rng::Domain::Photon, 0, 0, 0);
+        for radius in [10.0f32, 1e3, 1e4, 1e6] {
+            let s = Sphere { center: Vec3::new(0.0, -radius, 0.0), radius };
+            for _ in 0..1000 {
+                let u = rng.next_2d();
+                let down = Ray::new(Vec3A::new(4.0 * u.x - 2.0, 1.0, 4.0 * u.y - 2.0), Vec3A::NEG_Y);
+                let t = s.intersect(&down, f32::INFINITY).unwrap();
+                let hit = s.local_hit(&down, t);
+                let o = crate::math::offset_ray_origin(hit.p, hit.n);
+                let w = crate::math::uniform_sphere(rng.next_2d());
+                let w = if w.dot(hit.n) < 0.0 { -w } else { w };
+                let up = Ray::new(o, w);
+                assert_eq!(s.intersect(&up, f32::INFINITY), None, "R = {radius}: from {o} along {w}");
+            }
+        }
     }
 
     #[test]

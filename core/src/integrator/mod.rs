@@ -67,7 +67,8 @@ pub fn sample_one_light(
     let light = &prep.lights.lights[i];
     let Some(ls) = light.sample_li(&prep.geometry, hit.p, u2) else { return Rgb::ZERO };
     let f = bsdf.f(wo, ls.wi, TransportMode::Radiance);
-    if f == Rgb::ZERO || ls.pdf <= 0.0 {
+    // Written so that a NaN pdf also returns: every division below is by a positive pdf or pmf.
+    if f == Rgb::ZERO || !(ls.pdf > 0.0 && pmf > 0.0 && pmf * ls.pdf > 0.0) {
         return Rgb::ZERO;
     }
     *rays += 1;

@@ -4,7 +4,7 @@
 //! Both follow mirror and glass (delta lobes) from the camera. At each non-delta vertex the path tracer
 //! estimates direct light by sampling one light (chosen by power) and by sampling the BSDF, weighting the two
 //! with the power heuristic (Veach 1997, §9.2); the BSDF sample then continues the path, ended by Russian
-//! roulette on the throughput. The direct integrator stops after that first BSDF sample.
+//! roulette once its throughput, without the η² of refraction, falls below 1. The direct integrator stops after that first BSDF sample.
 
 use super::sample_one_light;
 use crate::Rgb;
@@ -26,6 +26,9 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
     let mut prev_delta = true;
     let mut prev_pdf = 0.0f32;
     let mut finishing = false;
+    // Product of η² over the refractions so far: `beta · eta_scale` is the throughput without the 1/η² scaling
+    // of radiance across glass, which Russian roulette must not mistake for absorption.
+    let mut eta_scale = 1.0f32;
     for depth in 0..=max_depth {
         *rays += 1;
         let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
@@ -61,12 +64,18 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
         prev_pdf = bs.pdf;
         if direct_only && !bs.delta {
             finishing = true;
-        } else if depth + 1 >= RR_START {
-            let q = beta.max_element().min(0.95);
-            if s.next_f32() >= q {
-                break;
+        } else {
+            eta_scale *= bs.eta * bs.eta;
+            // Roulette only a path whose throughput (η² scaling undone) has fallen below 1, surviving with that
+            // probability (pbrt-v4): a path through lossless glass keeps throughput 1 and is never ended at
+            // random, so a glass object in a white furnace is 1 in every sample, not only on average.
+            let rr_beta = beta.max_element() * eta_scale;
+            if depth + 1 >= RR_START && rr_beta < 1.0 {
+                if s.next_f32() >= rr_beta {
+                    break;
+                }
+                beta /= rr_beta;
             }
-            beta /= q;
         }
         if !beta.is_finite() {
             break;

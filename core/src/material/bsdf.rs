@@ -96,6 +96,10 @@ pub struct BsdfSample {
     pub pdf: f32,
     /// Whether `wi` came from a delta lobe (mirror or glass).
     pub delta: bool,
+    /// For a refracted `wi`, the relative index η of the side `wi` points into over the side of `wo`; 1 for a
+    /// reflection. Radiance crossing the surface is scaled by 1/η², which is not a loss of energy: Russian
+    /// roulette undoes it (pbrt-v4's `etaScale`).
+    pub eta: f32,
 }
 
 /// A [`Bxdf`] placed at a surface point: the shading frame (normal on local +z) and the geometric normal.
@@ -255,17 +259,15 @@ impl Bsdf {
         if pdf <= 0.0 {
             return None;
         }
-        Some(BsdfSample { wi, f: self.f_local(wo_l, wi_l), pdf, delta: false })
+        Some(BsdfSample { wi, f: self.f_local(wo_l, wi_l), pdf, delta: false, eta: 1.0 })
     }
 
     /// Mirror reflection about the shading normal with reflectance `r`, chosen with probability `prob`.
     fn sample_mirror(&self, wo: Vec3A, wo_l: Vec3A, r: Rgb, prob: f32) -> Option<BsdfSample> {
-        let wi_l = Vec3A::new(-wo_l.x, -wo_l.y, wo_l.z);
-        let wi = self.frame.to_world(wi_l);
-        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 || wi_l.z == 0.0 {
-            return None;
-        }
-        Some(BsdfSample { wi, f: r / wi_l.z.abs(), pdf: prob, delta: true })
+        let wi = self.frame.to_world(Vec3A::new(-wo_l.x, -wo_l.y, wo_l.z));
+        let wi = self.onto_side(wi, wo.dot(self.ng))?;
+        let cos_i = wi.dot(self.frame.n).abs();
+        (cos_i > 0.0).then(|| BsdfSample { wi, f: r / cos_i, pdf: prob, delta: true, eta: 1.0 })
     }
 
     /// Fresnel reflection (probability F) or refraction (1 − F) with index `eta` (inside over outside).
@@ -287,29 +289,55 @@ impl Bsdf {
         let (etap, n_l) = if entering { (eta, Vec3A::Z) } else { (1.0 / eta, -Vec3A::Z) };
         let cos_o = wo_l.dot(n_l);
         if cos_o <= 0.0 {
-            // The shading normal disagrees with the geometric side by more than 90°: no consistent answer.
-            return None;
+            // `wo` lies below the shading normal's horizon on its own geometric side: the shading frame has no
+            // answer, so this sample uses the geometric normal instead of dropping the path.
+            if self.frame.n == self.ng {
+                return None;
+            }
+            // Its `f` is rescaled so that the weight `f·|wi·ns|/pdf`, taken by callers with this shading normal,
+            // is the one the geometric frame gives.
+            let geometric = Bsdf::new(self.ng, self.ng, self.bxdf);
+            let mut bs = geometric.sample_dielectric(wo, geometric.frame.to_local(wo), eta, tint, u, mode)?;
+            let cos_s = bs.wi.dot(self.frame.n).abs();
+            if cos_s <= 0.0 {
+                return None;
+            }
+            bs.f *= bs.wi.dot(self.ng).abs() / cos_s;
+            return Some(bs);
         }
         let fr = fresnel_dielectric(cos_o, etap);
         if u < fr {
-            let wi_l = Vec3A::new(-wo_l.x, -wo_l.y, wo_l.z);
-            let wi = self.frame.to_world(wi_l);
-            if wi.dot(self.ng) * side <= 0.0 {
-                return None;
-            }
-            return Some(BsdfSample { wi, f: tint * (fr / wi_l.z.abs()), pdf: fr, delta: true });
+            let wi = self.frame.to_world(Vec3A::new(-wo_l.x, -wo_l.y, wo_l.z));
+            let wi = self.onto_side(wi, side)?;
+            let cos_i = wi.dot(self.frame.n).abs();
+            return (cos_i > 0.0).then(|| BsdfSample { wi, f: tint * (fr / cos_i), pdf: fr, delta: true, eta: 1.0 });
         }
-        let wi_l = refract(wo_l, n_l, etap)?;
-        let wi = self.frame.to_world(wi_l);
-        if wi.dot(self.ng) * side >= 0.0 || wi_l.z == 0.0 {
-            return None;
-        }
+        let wi = self.frame.to_world(refract(wo_l, n_l, etap)?);
+        let wi = self.onto_side(wi, -side)?;
+        let cos_i = wi.dot(self.frame.n).abs();
         let tr = 1.0 - fr;
         let scale = match mode {
             TransportMode::Radiance => 1.0 / (etap * etap),
             TransportMode::Importance => 1.0,
         };
-        Some(BsdfSample { wi, f: tint * (tr * scale / wi_l.z.abs()), pdf: tr, delta: true })
+        (cos_i > 0.0).then(|| BsdfSample { wi, f: tint * (tr * scale / cos_i), pdf: tr, delta: true, eta: etap })
+    }
+
+    /// `wi`, mirrored across the geometric tangent plane if it lies on the wrong side of it (the side of
+    /// `side`'s sign is wanted). Refraction or reflection about a shading normal can point a delta sample to the
+    /// wrong side of the true surface; returning no sample there (pbrt's choice) drops its energy, and a closed
+    /// glass mesh with smooth normals then darkens in a white furnace. Mirroring keeps the sample's weight
+    /// `f·|cos θi|/pdf` (the caller's cosine is taken with the mirrored direction) and sends it where the event
+    /// it stands for goes. `None` only for a direction in the tangent plane.
+    fn onto_side(&self, wi: Vec3A, side: f32) -> Option<Vec3A> {
+        let c = wi.dot(self.ng);
+        if c == 0.0 {
+            None
+        } else if c * side > 0.0 {
+            Some(wi)
+        } else {
+            Some(wi - (2.0 * c) * self.ng)
+        }
     }
 }
 

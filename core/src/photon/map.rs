@@ -341,7 +341,9 @@ impl PhotonMap {
                 l += f(wi) * ph.phi() * est.kernel.weight(d2 * inv_r2);
             }
         }
-        l * inv_r2
+        let l = l * inv_r2;
+        debug_assert!(l.is_finite(), "photon estimate {l:?} at {p} with r² = {r2}");
+        l
     }
 
     /// Progressive photon mapping's gather: the flux `Σ f(wi)·Φ` of the photons within `radius` of `p` that the

@@ -8,12 +8,13 @@ pub mod photons;
 
 use crate::Rgb;
 use crate::camera::Camera;
+use crate::geometry::mesh::Normals;
 use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
 use crate::light::{Light, LightSet};
 use crate::material::Material;
 use crate::photon::{Estimator, Gather, PhotonMaps};
-use crate::scene::{Emission, GatherMode, LightSpec, Object, RenderSettings, Scene, SceneError};
+use crate::scene::{Emission, GatherMode, Integrator, LightSpec, Object, RenderSettings, Scene, SceneError};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
 
@@ -41,6 +42,7 @@ impl Prepared {
     pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
         let materials: Vec<Material> = scene.materials.values().cloned().collect();
         let (mut geometry, emitters) = geometry(scene, scene_path)?;
+        check_photon_radius(scene, &geometry, scene_path)?;
         let lights = lights(scene, &mut geometry, &emitters);
         Ok(Self {
             camera: Camera::new(&scene.camera),
@@ -55,11 +57,7 @@ impl Prepared {
     /// The gather radius in scene units: `render.photons.radius`, or 2% of the diagonal of the bounding box of
     /// the bounded primitives (1 unit for a scene of planes only).
     pub fn photon_radius(&self) -> f32 {
-        self.settings.photons.radius.unwrap_or_else(|| {
-            let b = self.geometry.bounds();
-            let d = (b.max - b.min).length();
-            if d.is_finite() && d > 0.0 { 0.02 * d } else { 1.0 }
-        })
+        self.settings.photons.radius.unwrap_or_else(|| 0.02 * scene_size(&self.geometry))
     }
 
     /// The radiance estimator of the photon settings.
@@ -78,6 +76,42 @@ impl Prepared {
         let scene = Scene::load(path)?;
         Self::new(&scene, path)?.with_photon_maps(path)
     }
+}
+
+/// The smallest gather radius allowed, as a fraction of the scene's size ([`scene_size`]). Positions are
+/// f32, good to about 6·10⁻⁸ of their magnitude, so a smaller disc holds no photon that is not a rounding
+/// accident, and its squared radius may underflow (1e-25² is 0 in f32), which turns `Φ / (π r²)` into NaN.
+pub const MIN_RELATIVE_PHOTON_RADIUS: f32 = 1e-6;
+
+/// The size of the scene: the diagonal of the bounding box of its bounded primitives, or 1 unit for a scene
+/// of planes only.
+fn scene_size(geometry: &Geometry) -> f32 {
+    let b = geometry.bounds();
+    let d = (b.max - b.min).length();
+    if d.is_finite() && d > 0.0 { d } else { 1.0 }
+}
+
+/// Rejects a `render.photons.radius` below [`MIN_RELATIVE_PHOTON_RADIUS`] of the scene's size, for the methods
+/// that gather photons. Validation cannot do it: it does not know the scene's size before meshes are loaded.
+fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::path::Path) -> Result<(), SceneError> {
+    let uses_photons =
+        scene.render.integrator.needs_photon_maps() || scene.render.integrator == Integrator::Progressive;
+    let Some(radius) = scene.render.photons.radius else { return Ok(()) };
+    let size = scene_size(geometry);
+    let floor = MIN_RELATIVE_PHOTON_RADIUS * size;
+    // Validation has already rejected NaN and non-positive radii.
+    if uses_photons && radius < floor {
+        return Err(SceneError::Invalid {
+            path: scene_path.into(),
+            line: None,
+            field: "render.photons.radius".into(),
+            message: format!(
+                "{radius:e} is below the smallest gather radius for this scene, {floor:e} \
+                 ({MIN_RELATIVE_PHOTON_RADIUS:e} of its size {size})"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// The scene's surfaces under one BVH, and the emission of each light-carrying primitive by its light index
@@ -129,9 +163,10 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
             Object::Triangle { vertices, emission, .. } => {
                 push(Shape::Triangle(Triangle::new(vertices[0], vertices[1], vertices[2])), emission)
             }
-            Object::Mesh { file, transform, emission, .. } => {
+            Object::Mesh { file, transform, emission, smooth, crease_angle, .. } => {
                 let path = scene.base_dir.join(file);
-                let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix()).map_err(|source| {
+                let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
+                let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals).map_err(|source| {
                     SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
                 })?;
                 let mesh_index = meshes.len() as u32;

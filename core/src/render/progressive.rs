@@ -130,13 +130,17 @@ pub(super) fn render_strip(
                     // The box-kernel estimate is Σ f·Φ / (π r²): undo the normalisation to get Σ f·Φ and M.
                     let Some(map) = &map else { continue };
                     let (phi, m) = photon_flux(map, &est, &hit, &bsdf, wo);
-                    if m > 0 {
+                    // st.n + m > 0 as m > 0; a radius that shrank to nothing (r² ≤ 0) stops shrinking, so
+                    // the ratio r2_new / r2 below never divides by zero.
+                    if m > 0 && st.r2 > 0.0 {
                         let m = m as f32;
                         let n_new = st.n + ph.alpha * m;
                         let r2_new = st.r2 * n_new / (st.n + m);
-                        st.tau = (st.tau + beta * finite_or_zero(phi)) * (r2_new / st.r2);
-                        st.n = n_new;
-                        st.r2 = r2_new;
+                        if r2_new > 0.0 {
+                            st.tau = (st.tau + beta * finite_or_zero(phi)) * (r2_new / st.r2);
+                            st.n = n_new;
+                            st.r2 = r2_new;
+                        }
                     }
                 }
                 rays
@@ -151,7 +155,11 @@ pub(super) fn render_strip(
     let pixels = stats
         .iter()
         .flat_map(|st| {
-            let c = st.ld * inv_passes + st.tau / (passes as f32 * std::f32::consts::PI * st.r2);
+            // τ is only ever scaled when r² > 0; a pixel whose radius is zero gathered nothing.
+            let area = passes as f32 * std::f32::consts::PI * st.r2;
+            let indirect = if area > 0.0 { st.tau / area } else { Rgb::ZERO };
+            let c = st.ld * inv_passes + finite_or_zero(indirect);
+            debug_assert!(c.is_finite(), "progressive: non-finite pixel {c:?} (r² = {}, τ = {:?})", st.r2, st.tau);
             c.to_array()
         })
         .collect();

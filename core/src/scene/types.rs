@@ -443,7 +443,23 @@ pub enum Object {
         /// Area light emission, if any.
         #[serde(default)]
         emission: Option<Emission>,
+        /// Smooth shading (default `true`): the file's normals, or normals computed within `crease_angle`;
+        /// `false` shades every face with its geometric normal.
+        #[serde(default = "default_smooth")]
+        smooth: bool,
+        /// Largest angle in degrees between two faces' normals across which computed normals are smoothed, in
+        /// [0, 180]; default 30. Unused when the file has normals.
+        #[serde(default = "default_crease_angle")]
+        crease_angle: f32,
     },
+}
+
+fn default_smooth() -> bool {
+    true
+}
+
+fn default_crease_angle() -> f32 {
+    crate::geometry::mesh::Normals::DEFAULT_CREASE_ANGLE
 }
 
 impl Object {

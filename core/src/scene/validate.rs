@@ -125,7 +125,13 @@ impl Scene {
                 }
                 emission
             }
-            Object::Mesh { transform, emission, .. } => {
+            Object::Mesh { transform, emission, crease_angle, .. } => {
+                if !(0.0..=180.0).contains(crease_angle) {
+                    return Err(FieldError::new(
+                        f("crease_angle"),
+                        format!("expected an angle in degrees from 0 to 180, found {crease_angle}"),
+                    ));
+                }
                 finite3(&f("transform.translate"), transform.translate)?;
                 finite3(&f("transform.rotate"), transform.rotate)?;
                 let s = transform.scale.to_vec3();
