@@ -72,7 +72,7 @@ fn render(args: RenderArgs) -> Result<()> {
     })?;
     let mut outcome = match outcome {
         Ok(o) => o,
-        Err(e) => return fail_keeping_partial(&args.output, e),
+        Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
     let t_assemble = Instant::now();
     let image = Image { width, height, pixels: std::mem::take(&mut outcome.pixels) };
@@ -98,14 +98,23 @@ fn render_scene(args: &RenderArgs) -> Result<Scene> {
 }
 
 /// Keeps the finished strips of a failed render in the partial file beside the output, and says how to resume.
-fn fail_keeping_partial(output: &Path, e: FarmError) -> Result<()> {
+/// A fatal failure is not resumable: no worker of this build can render that strip, so it is reported as a bug
+/// of `method`, with no partial file and no `--resume` hint.
+fn fail_keeping_partial(output: &Path, e: FarmError, method: Integrator) -> Result<()> {
+    if let FarmError::Fatal { workers, .. } = &e {
+        print_workers(workers);
+        bail!(
+            "{e}\nno worker of this build can render it with the method `{method}` (resuming would fail the same \
+             way): this is a bug in photon; please report it with the scene and the command"
+        );
+    }
     let Some(partial) = e.partial() else {
         return Err(e.into());
     };
     let path = partial_path(output);
     let done = partial.strips.len();
     partial.write(&path)?;
-    if let FarmError::NoWorkers { workers, .. } | FarmError::Fatal { workers, .. } = &e {
+    if let FarmError::NoWorkers { workers, .. } = &e {
         print_workers(workers);
     }
     bail!(

@@ -320,7 +320,8 @@ pub enum StripError {
     /// The pixels do not hash to the worker's checksum.
     #[error("checksum mismatch: the pixels changed after the worker hashed them")]
     ChecksumMismatch,
-    /// A value that no radiance can have (negative or not finite).
+    /// A value that no radiance can have (negative or not finite), in pixels that hash to the worker's
+    /// checksum: the worker's renderer computed it, and every worker of this build would compute it again.
     #[error("pixel ({x}, {y}) holds {value}: not a radiance")]
     NotRadiance {
         /// Column.
@@ -349,7 +350,7 @@ impl StripError {
     /// Another attempt could succeed; `false` when the job itself cannot render (another worker would fail the
     /// same way).
     pub fn retryable(&self) -> bool {
-        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. })
+        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. } | Self::NotRadiance { .. })
     }
 
     /// The failure counts against the worker: it misbehaved, rather than being busy or cancelled, or the job
@@ -367,7 +368,8 @@ impl StripError {
                     | Code::Cancelled
                     | Code::DeadlineExceeded
             ),
-            Self::StreamEnded => false,
+            // Not the worker's fault: the same build renders the same pixel the same way everywhere.
+            Self::StreamEnded | Self::NotRadiance { .. } => false,
             _ => true,
         }
     }
@@ -463,7 +465,7 @@ mod tests {
         assert_eq!(status(Code::Internal).to_string(), "why (Internal)");
         assert!(StripError::StreamEnded.lost());
         let bad = StripError::NotRadiance { x: 1, y: 2, value: -0.5 };
-        assert_eq!(bad.failure(), StripFailure::counted("pixel (1, 2) holds -0.5: not a radiance"));
+        assert_eq!(bad.failure(), StripFailure::fatal("pixel (1, 2) holds -0.5: not a radiance"));
         assert!(StripError::ChecksumMismatch.failure().counted);
     }
 }

@@ -90,6 +90,9 @@ pub enum Fault {
     CorruptPixels(u32),
     /// Wait this many milliseconds before each strip, as a much slower machine would take longer.
     Delay(u64),
+    /// Render a NaN into the first pixel of every strip before computing the checksum, as a bug in an
+    /// integrator would.
+    NanPixels,
 }
 
 /// The decoded scene of one job, with its shared progressive passes.
@@ -138,7 +141,7 @@ impl Worker {
         let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
         let corrupt = match config.fault {
             Fault::CorruptPixels(n) => n,
-            Fault::None | Fault::Delay(_) => 0,
+            Fault::None | Fault::Delay(_) | Fault::NanPixels => 0,
         };
         Ok(Self {
             pool: Arc::new(pool),
@@ -367,6 +370,7 @@ impl Render for Worker {
                 Fault::Delay(ms) => std::time::Duration::from_millis(ms),
                 _ => std::time::Duration::ZERO,
             },
+            nan_pixels: matches!(self.config.fault, Fault::NanPixels),
         };
         let slot = self.render_slot.clone();
         let waiting = self.waiting.clone();
@@ -402,6 +406,8 @@ struct StripContext {
     pass_budget: u64,
     corrupt_left: Arc<AtomicU32>,
     delay: std::time::Duration,
+    /// Test only: a NaN in every strip ([`Fault::NanPixels`]).
+    nan_pixels: bool,
 }
 
 type Event_ = Result<pb::StripEvent, Status>;
@@ -465,7 +471,14 @@ impl StripContext {
             return Err(Status::cancelled("the coordinator cancelled the strip"));
         };
         let render_seconds = t0.elapsed().as_secs_f64();
-        let mut bytes = photon_proto::pixels_to_bytes(&strip.pixels);
+        let mut pixels = strip.pixels;
+        if self.nan_pixels
+            && let Some(p) = pixels.first_mut()
+        {
+            tracing::warn!(strip = r.strip, "fault injection: a NaN pixel before the checksum");
+            *p = f32::NAN;
+        }
+        let mut bytes = photon_proto::pixels_to_bytes(&pixels);
         let checksum = photon_proto::checksum(&bytes).to_vec();
         let corrupt = self.corrupt_left.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1));
         if corrupt.is_ok() && bytes.len() >= 4 {

@@ -48,6 +48,9 @@ struct Cli {
     /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
     #[arg(long, hide = true, value_name = "N")]
     test_corrupt_strips: Option<u32>,
+    /// Test only: render a NaN into every strip before its checksum, as a bug in an integrator would.
+    #[arg(long, hide = true)]
+    test_nan_strips: bool,
     /// Test only: wait MS milliseconds before each strip, like a much slower machine.
     #[arg(long, hide = true, value_name = "MS")]
     test_delay_ms: Option<u64>,
@@ -95,6 +98,9 @@ fn run(cli: Cli) -> Result<()> {
     }
     if let Some(n) = cli.test_corrupt_strips {
         config.fault = Fault::CorruptPixels(n);
+    }
+    if cli.test_nan_strips {
+        config.fault = Fault::NanPixels;
     }
     if let Some(ms) = cli.test_delay_ms {
         config.fault = Fault::Delay(ms);
