@@ -85,10 +85,13 @@ impl Scene {
             Err(e) => return Err(blame(&text, &file, &settings, &e, path)?),
         };
         scene.base_dir = base_dir(path);
+        // A refused value that an override set is the override's error (the last one of that field wins).
         scene.validate(&text, path).map_err(|e| match e {
-            SceneError::Invalid { field, message, .. } if settings.iter().rev().any(|s| s.covers(&field)) => {
-                let s = settings.iter().rev().find(|s| s.covers(&field)).map_or("", |s| s.text);
-                SceneError::Override { path: path.into(), field, setting: s.into(), message }
+            SceneError::Invalid { path, line, field, message } => {
+                match settings.iter().rev().find(|s| s.covers(&field)) {
+                    Some(s) => SceneError::Override { path, field, setting: s.text.into(), message },
+                    None => SceneError::Invalid { path, line, field, message },
+                }
             }
             e => e,
         })?;
