@@ -73,13 +73,12 @@ pub enum FarmError {
         /// Per-worker lines.
         workers: Vec<WorkerReport>,
     },
-    /// A failure that no retry can fix (the job itself cannot render).
+    /// A failure that no retry can fix (the job itself cannot render): no partial file is kept, since resuming
+    /// would fail the same way.
     #[error("the render cannot finish: {reason}")]
     Fatal {
         /// Why.
         reason: String,
-        /// What was finished.
-        partial: Partial,
         /// Per-worker lines.
         workers: Vec<WorkerReport>,
     },
@@ -92,8 +91,8 @@ impl FarmError {
     /// The finished strips, when there are any worth keeping.
     pub fn partial(&self) -> Option<&Partial> {
         match self {
-            Self::NoWorkers { partial, .. } | Self::Fatal { partial, .. } => Some(partial),
-            Self::Resume(_) => None,
+            Self::NoWorkers { partial, .. } => Some(partial),
+            Self::Fatal { .. } | Self::Resume(_) => None,
         }
     }
 }
@@ -440,7 +439,6 @@ impl<'a> Farm<'a> {
             }
             Err(stop) => stop,
         };
-        let partial = self.partial();
         match stop {
             Stop::NoWorkers => {
                 let reasons = self
@@ -450,9 +448,9 @@ impl<'a> Farm<'a> {
                     .collect::<Vec<_>>()
                     .join("; ");
                 let reasons = if reasons.is_empty() { "no workers were given".to_owned() } else { reasons };
-                Err(FarmError::NoWorkers { reasons, partial, workers })
+                Err(FarmError::NoWorkers { reasons, partial: self.partial(), workers })
             }
-            Stop::Fatal(reason) => Err(FarmError::Fatal { reason, partial, workers }),
+            Stop::Fatal(reason) => Err(FarmError::Fatal { reason, workers }),
         }
     }
 
