@@ -6,6 +6,11 @@
 //!    on loopback and on a 1 Gbit/s link;
 //! 3. strips per second: the scheduler state machine alone, and the whole farm with trivial strips.
 //!
+//! `-- --scaling [--max-workers N]` instead measures scaling (docs/RESULTS.md, "Scaling"): each method's job
+//! rendered in-process on every core, then on 1, 2, 4, …, N one-thread loopback worker processes (N: the
+//! cores); time (median of 3), speed-up over one worker, parallel efficiency, and every image checked bit for
+//! bit against the in-process one.
+//!
 //! `cargo build --release -p photon-worker && cargo run --release -p photon-coordinator --example farm_bench`
 //! (the worker binary is needed for the loopback processes). `-- --quick` runs fewer, smaller cases.
 
@@ -48,10 +53,20 @@ fn cornell(size: u32, spp: u32, integrator: Integrator, photons: u32) -> (Scene,
 }
 
 fn main() {
-    let quick = std::env::args().any(|a| a == "--quick");
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--quick");
     let cores = rayon::current_num_threads();
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("runtime");
     println!("farm_bench: {cores} threads, {}", if quick { "quick" } else { "full" });
+    if args.iter().any(|a| a == "--scaling") {
+        let max = args
+            .iter()
+            .position(|a| a == "--max-workers")
+            .and_then(|i| args.get(i + 1))
+            .map_or(cores, |n| n.parse().expect("--max-workers N"));
+        scaling(&rt, quick, cores, max);
+        return;
+    }
 
     // 1. Overhead of the farm against the direct render.
     let (size, spp, runs) = if quick { (96, 8, 3) } else { (256, 32, 5) };
@@ -198,4 +213,65 @@ fn compression(blob: &[u8]) {
         blob.len() as f64 / d / 1e6,
         100.0 * (with / raw - 1.0)
     );
+}
+
+/// The scaling table: per method, in-process on all cores, then 1, 2, 4, …, `max` one-thread loopback workers.
+fn scaling(rt: &tokio::runtime::Runtime, quick: bool, cores: usize, max: usize) {
+    let size = if quick { 64 } else { 128 };
+    let jobs: [(Integrator, u32, u32, u32); 4] = [
+        (Integrator::Path, 16, 0, 1),
+        (Integrator::PhotonMap, 8, 200_000, 1),
+        (Integrator::FinalGather, 2, 50_000, 1),
+        (Integrator::Progressive, 1, 20_000, 64),
+    ];
+    let mut counts = vec![1usize];
+    while counts.last().is_some_and(|&n| n * 2 <= max) {
+        counts.push(counts.last().map_or(1, |n| n * 2));
+    }
+    if counts.last() != Some(&max) {
+        counts.push(max);
+    }
+    println!(
+        "\n## Scaling: Cornell {size}x{size}, medians of 3; workers of 1 thread each; in-process on {cores} threads"
+    );
+    println!("| method | farm | s | speed-up over 1 worker | efficiency |");
+    println!("|---|---|---:|---:|---:|");
+    for (integrator, spp, photons, passes) in jobs {
+        let (mut scene, path) = cornell(size, spp, integrator, photons);
+        scene.render.photons.pass_photons = photons;
+        scene.render.photons.passes = passes;
+        let t = Instant::now();
+        let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
+        let prepare_s = t.elapsed().as_secs_f64();
+        let job = job_of(&prep);
+        let time = |addrs: &[session::WorkerAddr]| -> (f64, Vec<u32>) {
+            let mut times = Vec::new();
+            let mut bits = Vec::new();
+            for _ in 0..3 {
+                let t = Instant::now();
+                let out = rt.block_on(farm::render(&job, addrs, Options::default())).expect("render");
+                times.push(t.elapsed().as_secs_f64());
+                bits = out.pixels.iter().map(|v| v.to_bits()).collect();
+            }
+            (median(times), bits)
+        };
+        let inproc = rt.block_on(InProcess::start(None)).expect("in-process worker");
+        let (t_in, want) = time(std::slice::from_ref(&inproc.addr));
+        drop(inproc);
+        println!("| {integrator} | in-process, {cores} threads (prepare {prepare_s:.2} s) | {t_in:.3} | | |");
+        let mut t1 = None;
+        for &n in &counts {
+            let local = rt.block_on(LocalWorkers::start(n, n, None)).expect("loopback workers");
+            let (t, got) = time(&local.addrs);
+            rt.block_on(local.stop());
+            assert!(got == want, "{integrator}: {n} workers changed pixels");
+            let base = *t1.get_or_insert(t);
+            let speedup = base / t;
+            println!(
+                "| {integrator} | {n} worker{} | {t:.3} | {speedup:.2} | {:.0} % |",
+                if n == 1 { "" } else { "s" },
+                100.0 * speedup / n as f64
+            );
+        }
+    }
 }

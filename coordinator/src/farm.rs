@@ -1,6 +1,10 @@
 //! Rendering a prepared job on workers over gRPC: schedule strips, validate and assemble them, survive workers
 //! that fail.
 //!
+//! The units are strips of rows, or for progressive photon mapping whole-image **pass blocks**: each block's
+//! passes are traced once in the whole farm, and its fixed-point sums are added exactly, in any order
+//! ([`PassAccumulator`]), so the image does not depend on the blocks, the workers or their speed.
+//!
 //! One task per worker opens a [`session`](crate::session) (connect, hello, ship the blobs it lacks); one task per
 //! strip in flight asks for it and checks what comes back. They report to a single loop that owns the [`Farm`]
 //! state, with the [`Scheduler`] (a pure state machine) inside, through a channel, so every decision is made in
@@ -18,7 +22,8 @@ use crate::report::{Warning, WorkerReport, progress_bar};
 use crate::scheduler::{
     Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
 };
-use crate::session::{self, Client, Ready, SessionError, StripError, WorkerAddr, fetch_strip};
+use crate::session::{self, Client, Ready, SessionError, StripData, StripError, StripResult, WorkerAddr, fetch_strip};
+use photon_core::render::progressive::PassAccumulator;
 use photon_proto::pb;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -32,8 +37,8 @@ pub struct Options {
     pub token: Option<String>,
     /// TLS: the PEM certificate authority that signed the workers' certificates (plaintext when `None`).
     pub tls_ca: Option<Vec<u8>>,
-    /// Rows per strip (default: [`crate::scheduler::rows_per_strip_for`], or
-    /// [`crate::scheduler::rows_per_strip_progressive`] for progressive photon mapping).
+    /// Rows per strip (default: [`crate::scheduler::rows_per_strip_for`]); for progressive photon mapping, passes
+    /// per block (default: [`crate::scheduler::passes_per_block_for`]).
     pub rows_per_strip: Option<u32>,
     /// The scheduling policy.
     pub policy: Policy,
@@ -50,6 +55,9 @@ pub struct Outcome {
     pub pixels: Vec<f32>,
     /// Rays traced (by accepted strips).
     pub rays: u64,
+    /// Photon paths traced by accepted strips (progressive passes; the other methods trace theirs when the job
+    /// is prepared).
+    pub photon_paths: u64,
     /// One line per worker.
     pub workers: Vec<WorkerReport>,
     /// Seconds from the start until the first worker was ready (connection, hello and shipping).
@@ -69,7 +77,7 @@ pub enum FarmError {
         /// Each worker's reason.
         reasons: String,
         /// What was finished.
-        partial: Partial,
+        partial: Box<Partial>,
         /// Per-worker lines.
         workers: Vec<WorkerReport>,
     },
@@ -146,7 +154,7 @@ enum Event {
     Ready { worker: WorkerId, ready: Box<Ready> },
     Refused { worker: WorkerId, reason: SessionError },
     Progress { worker: WorkerId, rows: u32 },
-    Strip { worker: WorkerId, strip: StripId, attempt: u32, result: Result<(Vec<f32>, u64), StripError> },
+    Strip { worker: WorkerId, strip: StripId, attempt: u32, result: Result<StripResult, StripError> },
 }
 
 /// Why the loop stopped before the image was complete.
@@ -166,8 +174,13 @@ struct Member {
     ship_s: f64,
     /// Why it is out, if it is (refused, lost, dropped).
     out: Option<String>,
-    /// Rows finished in strips still in flight (for the progress bar's rate).
+    /// Rows (passes, for pass blocks) finished in strips still in flight (for the progress bar's rate).
     rows_live: u64,
+    /// Photon paths its accepted results traced, and the seconds it spent tracing them and building their maps.
+    photon_paths: u64,
+    photon_s: f64,
+    /// Seconds it spent decoding the job's blobs.
+    load_s: f64,
 }
 
 /// The state of one render, owned by its event loop: the scheduler, the workers, the image so far and the
@@ -175,16 +188,20 @@ struct Member {
 struct Farm<'a> {
     job: &'a Job,
     t0: Instant,
+    /// Rows per strip, or passes per block.
     rows_per_strip: u32,
     sched: Scheduler,
     members: Vec<Member>,
-    /// Linear RGB, row-major.
+    /// Linear RGB, row-major (strips).
     image: Vec<f32>,
+    /// The sums of the pass blocks accepted so far (progressive photon mapping).
+    passes: Option<PassAccumulator>,
     /// Rows of finished strips (first row → end), for the partial file.
     done_rows: BTreeMap<u32, u32>,
     /// Strip calls in flight; aborting one cancels the strip on its worker.
     tasks: BTreeMap<(WorkerId, StripId), AbortHandle>,
     rays: u64,
+    photon_paths: u64,
     first_ready: Option<Instant>,
     /// Workers whose session has not reported yet.
     unresolved: usize,
@@ -198,11 +215,17 @@ impl<'a> Farm<'a> {
     fn new(job: &'a Job, workers: &[WorkerAddr], options: &Options) -> Result<Self, FarmError> {
         let t0 = Instant::now();
         let n = workers.len() as u32;
-        let rows_per_strip = match (&options.resume, options.rows_per_strip) {
-            (Some(p), _) => p.rows_per_strip,
-            (None, Some(r)) => r,
-            (None, None) if job.progressive => crate::scheduler::rows_per_strip_progressive(job.height, n),
-            (None, None) => crate::scheduler::rows_per_strip_for(job.height, n),
+        let rows_per_strip = match (&options.resume, options.rows_per_strip, job.passes) {
+            (Some(p), _, _) => p.rows_per_strip,
+            (None, Some(r), _) => r,
+            (None, None, Some(passes)) => crate::scheduler::passes_per_block_for(passes, n),
+            (None, None, None) => crate::scheduler::rows_per_strip_for(job.height, n),
+        };
+        let pixels = 3 * job.width as usize * job.height as usize;
+        // Progressive photon mapping schedules its passes as the scheduler's "rows".
+        let (units, image, passes) = match job.passes {
+            Some(p) => (p, Vec::new(), Some(PassAccumulator::new(pixels, p))),
+            None => (job.height, vec![0.0f32; pixels], None),
         };
         let members = workers
             .iter()
@@ -214,18 +237,23 @@ impl<'a> Farm<'a> {
                 ship_s: 0.0,
                 out: None,
                 rows_live: 0,
+                photon_paths: 0,
+                photon_s: 0.0,
+                load_s: 0.0,
             })
             .collect();
         let mut farm = Self {
             job,
             t0,
             rows_per_strip,
-            sched: Scheduler::with_policy(job.height, rows_per_strip, options.policy.clone()),
+            sched: Scheduler::with_policy(units, rows_per_strip, options.policy.clone()),
             members,
-            image: vec![0.0f32; 3 * job.width as usize * job.height as usize],
+            image,
+            passes,
             done_rows: BTreeMap::new(),
             tasks: BTreeMap::new(),
             rays: 0,
+            photon_paths: 0,
             first_ready: None,
             unresolved: workers.len(),
             resumed: 0,
@@ -236,7 +264,8 @@ impl<'a> Farm<'a> {
         if let Some(p) = &options.resume {
             farm.resume(p)?;
         }
-        farm.bar = progress_bar(options.progress, farm.sched.strip_count(), farm.resumed);
+        let unit = if job.passes.is_some() { "pass blocks" } else { "strips" };
+        farm.bar = progress_bar(options.progress, farm.sched.strip_count(), farm.resumed, unit);
         Ok(farm)
     }
 
@@ -248,6 +277,28 @@ impl<'a> Farm<'a> {
                 "the partial file was made by another scene, other settings or another build: render without --resume"
                     .into(),
             ));
+        }
+        if let Some(acc) = &mut self.passes {
+            let restored = p.pass_sums.as_deref().is_some_and(|sums| acc.restore(sums));
+            let blocks: Vec<StripId> =
+                p.strips.iter().map(|(first, _)| StripId(first / self.rows_per_strip.max(1))).collect();
+            let fits = |(id, (first, _)): (&StripId, &(u32, Vec<f32>))| {
+                self.sched.strip_rows(*id).is_some_and(|passes| passes.start == *first)
+            };
+            if !restored || !blocks.iter().zip(&p.strips).all(fits) {
+                return Err(FarmError::Resume(
+                    "the partial file's pass blocks do not fit this render: render without --resume".into(),
+                ));
+            }
+            for id in blocks {
+                if self.sched.mark_done(id) {
+                    self.resumed += 1;
+                }
+                if let Some(passes) = self.sched.strip_rows(id) {
+                    self.done_rows.insert(passes.start, passes.end);
+                }
+            }
+            return Ok(());
         }
         let width = job.width as usize;
         for (first_row, pixels) in &p.strips {
@@ -327,13 +378,13 @@ impl<'a> Farm<'a> {
         worker: WorkerId,
         strip: StripId,
         attempt: u32,
-        result: Result<(Vec<f32>, u64), StripError>,
+        result: Result<StripResult, StripError>,
         now: Duration,
     ) {
         self.tasks.remove(&(worker, strip));
         self.members[worker.0 as usize].rows_live = 0;
         match result {
-            Ok((pixels, rays)) => self.on_pixels(worker, strip, attempt, &pixels, rays, now),
+            Ok(result) => self.on_result(worker, strip, attempt, result, now),
             Err(e) if e.lost() => self.on_lost(worker, e.to_string(), now),
             Err(e) => {
                 let failure = e.failure();
@@ -343,16 +394,29 @@ impl<'a> Farm<'a> {
         }
     }
 
-    /// A valid strip: the first copy wins and the others are cancelled.
-    fn on_pixels(&mut self, worker: WorkerId, strip: StripId, attempt: u32, pixels: &[f32], rays: u64, now: Duration) {
+    /// A valid strip or pass block: the first copy wins and the others are cancelled.
+    fn on_result(&mut self, worker: WorkerId, strip: StripId, attempt: u32, result: StripResult, now: Duration) {
+        let StripResult { data, summary } = result;
+        let m = &mut self.members[worker.0 as usize];
+        m.load_s += summary.load_seconds;
         match self.sched.complete(worker, strip, attempt, now) {
             Completion::Accepted { cancel } => {
+                m.photon_paths += summary.photon_paths;
+                m.photon_s += summary.photon_seconds;
                 if let Some(rows) = self.sched.strip_rows(strip) {
-                    let at = 3 * self.job.width as usize * rows.start as usize;
-                    self.image[at..at + pixels.len()].copy_from_slice(pixels);
+                    match (data, &mut self.passes) {
+                        (StripData::Sums(sums), Some(acc)) => acc.add(&sums),
+                        (StripData::Pixels(pixels), None) => {
+                            let at = 3 * self.job.width as usize * rows.start as usize;
+                            self.image[at..at + pixels.len()].copy_from_slice(&pixels);
+                        }
+                        // fetch_strip returns the kind the request asked for, and the request follows the job.
+                        _ => unreachable!("a strip's values are of the kind its job renders"),
+                    }
                     self.done_rows.insert(rows.start, rows.end);
                 }
-                self.rays += rays;
+                self.rays += summary.rays;
+                self.photon_paths += summary.photon_paths;
                 self.cancel(cancel);
                 self.bar.inc(1);
             }
@@ -434,8 +498,12 @@ impl<'a> Farm<'a> {
         let workers = self.reports();
         let stop = match result {
             Ok(()) => {
-                let (pixels, rays, resumed) = (self.image, self.rays, self.resumed);
-                return Ok(Outcome { pixels, rays, workers, ship_s, render_s, resumed });
+                let pixels = match &self.passes {
+                    Some(acc) => acc.image(),
+                    None => self.image,
+                };
+                let (rays, photon_paths, resumed) = (self.rays, self.photon_paths, self.resumed);
+                return Ok(Outcome { pixels, rays, photon_paths, workers, ship_s, render_s, resumed });
             }
             Err(stop) => stop,
         };
@@ -448,21 +516,24 @@ impl<'a> Farm<'a> {
                     .collect::<Vec<_>>()
                     .join("; ");
                 let reasons = if reasons.is_empty() { "no workers were given".to_owned() } else { reasons };
-                Err(FarmError::NoWorkers { reasons, partial: self.partial(), workers })
+                Err(FarmError::NoWorkers { reasons, partial: Box::new(self.partial()), workers })
             }
             Stop::Fatal(reason) => Err(FarmError::Fatal { reason, workers }),
         }
     }
 
-    /// The finished strips, for `--resume`.
+    /// The finished strips or pass blocks, for `--resume`.
     fn partial(&self) -> Partial {
         let width = self.job.width as usize;
         let strips = self
             .done_rows
             .iter()
-            .map(|(&start, &end)| {
-                let (lo, hi) = (3 * width * start as usize, 3 * width * end as usize);
-                (start, self.image[lo..hi].to_vec())
+            .map(|(&start, &end)| match self.passes {
+                Some(_) => (start, Vec::new()),
+                None => {
+                    let (lo, hi) = (3 * width * start as usize, 3 * width * end as usize);
+                    (start, self.image[lo..hi].to_vec())
+                }
             })
             .collect();
         let job = self.job;
@@ -472,10 +543,11 @@ impl<'a> Farm<'a> {
             height: job.height,
             rows_per_strip: self.rows_per_strip,
             strips,
+            pass_sums: self.passes.as_ref().map(|acc| acc.sums().to_vec()),
         }
     }
 
-    /// Per-worker rates for the progress bar: megapixels per busy second so far.
+    /// Per-worker rates for the progress bar: megapixels (or passes) per busy second so far.
     fn rates(&self) -> String {
         self.sched
             .workers()
@@ -483,8 +555,11 @@ impl<'a> Farm<'a> {
             .map(|(id, s)| {
                 let m = &self.members[id.0 as usize];
                 let busy = s.busy.as_secs_f64().max(1e-3);
-                let mpix = (s.rows + m.rows_live) as f64 * f64::from(self.job.width) / 1e6;
-                format!("{} {:.2} Mpx/s", m.addr.name, mpix / busy)
+                let done = (s.rows + m.rows_live) as f64;
+                match self.passes {
+                    Some(_) => format!("{} {:.2} passes/s", m.addr.name, done / busy),
+                    None => format!("{} {:.2} Mpx/s", m.addr.name, done * f64::from(self.job.width) / 1e6 / busy),
+                }
             })
             .collect::<Vec<_>>()
             .join(" · ")
@@ -501,6 +576,8 @@ impl<'a> Farm<'a> {
                 let (speculative, duplicates) = stats.map_or((0, 0), |s| (s.speculative, s.duplicates));
                 let (strips, busy_s, rows, failures) =
                     stats.map_or((0, 0.0, 0, 0), |s| (s.strips, s.busy.as_secs_f64(), s.rows, s.failures));
+                // A pass block covers every row of the image once per pass.
+                let rows = if self.passes.is_some() { rows * u64::from(self.job.height) } else { rows };
                 let state = match (&m.out, stats.map(|s| &s.state)) {
                     (Some(why), _) => why.clone(),
                     (None, Some(WorkerState::Dropped(why))) => format!("dropped: {why}"),
@@ -519,6 +596,9 @@ impl<'a> Farm<'a> {
                     speculative,
                     duplicates,
                     failures,
+                    photon_paths: m.photon_paths,
+                    photon_s: m.photon_s,
+                    load_s: m.load_s,
                     state,
                 }
             })
@@ -528,14 +608,21 @@ impl<'a> Farm<'a> {
 
 /// Starts the call of one assigned strip; its result comes back as an [`Event::Strip`].
 fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: UnboundedSender<Event>) -> AbortHandle {
+    // A pass block covers the whole image; the scheduler's "rows" are its passes.
+    let (rows, passes) = match job.passes {
+        Some(_) => (0..job.height, a.rows.clone()),
+        None => (a.rows.clone(), 0..0),
+    };
     let request = pb::StripRequest {
         scene_blob: job.scene_blob.clone(),
         photons_blob: job.photons_blob.clone().unwrap_or_default(),
         frame: job.frame.clone(),
-        row_start: a.rows.start,
-        row_end: a.rows.end,
+        row_start: rows.start,
+        row_end: rows.end,
         strip: a.strip.0,
         attempt: a.attempt,
+        pass_start: passes.start,
+        pass_end: passes.end,
     };
     let (strip, attempt, width) = (a.strip, a.attempt, job.width);
     let progress_tx = tx.clone();

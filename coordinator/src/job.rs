@@ -77,9 +77,9 @@ pub struct Job {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
-    /// Whether the method is progressive photon mapping, whose strips each need every pass's photons: it gets
-    /// fewer, taller strips ([`crate::scheduler::rows_per_strip_progressive`]).
-    pub progressive: bool,
+    /// The pass count when the method is progressive photon mapping: the farm then hands out whole-image pass
+    /// blocks ([`crate::scheduler::passes_per_block_for`]) instead of strips of rows.
+    pub passes: Option<u32>,
 }
 
 impl Job {
@@ -100,7 +100,8 @@ impl Job {
             id
         });
         let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
-        Self { scene_blob, photons_blob, blobs, frame, width, height, progressive }
+        let passes = progressive.then_some(settings.photons.passes.max(1));
+        Self { scene_blob, photons_blob, blobs, frame, width, height, passes }
     }
 
     /// A fingerprint of everything that decides the pixels: the blobs, the frame and the size. A partial file
@@ -121,7 +122,7 @@ impl Job {
     }
 }
 
-/// Strips finished so far: what an interrupted render leaves for `--resume`.
+/// Strips or pass blocks finished so far: what an interrupted render leaves for `--resume`.
 #[derive(Clone, Debug, serde::Serialize, serde::Deserialize)]
 pub struct Partial {
     /// [`Job::fingerprint`] of the job.
@@ -130,10 +131,14 @@ pub struct Partial {
     pub width: u32,
     /// Image height.
     pub height: u32,
-    /// The strip height the render used (a resumed render cuts the image the same way).
+    /// The strip height the render used, or the passes per block for progressive photon mapping (a resumed
+    /// render cuts the work the same way).
     pub rows_per_strip: u32,
-    /// Finished strips: (first row, pixels of whole rows).
+    /// Finished strips: (first row, pixels of whole rows). For progressive photon mapping: (first pass of each
+    /// finished block, no pixels), their sums being in `pass_sums`.
     pub strips: Vec<(u32, Vec<f32>)>,
+    /// Progressive photon mapping: the fixed-point sums of the finished blocks (3 per pixel, row-major).
+    pub pass_sums: Option<Vec<i128>>,
 }
 
 /// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes, BVH,

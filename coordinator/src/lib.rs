@@ -10,7 +10,7 @@
 //! loopback, or a worker server inside this process (the default, so a render on one machine takes the same
 //! path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of an unchanged
 //! scene. [`report`] is what the user reads: warnings during the render, the worker table and the summary line.
-//! [`sweep`] charts error against time. [`overrides`] turns the
+//! [`sweep`] charts error against time. [`model`] is a discrete-event model of a lab farm that drives the real scheduler with a simulated clock and network. [`overrides`] turns the
 //! flags that override scene settings, and the sweep's budgets, into the `KEY=VALUE` pairs of `--set`. [`cli`] holds the command line's arguments and [`commands`] runs them.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
@@ -20,6 +20,7 @@ pub mod commands;
 pub mod farm;
 pub mod fleet;
 pub mod job;
+pub mod model;
 pub mod overrides;
 pub mod prepared_cache;
 pub mod report;

@@ -32,6 +32,12 @@ pub struct WorkerReport {
     pub duplicates: u32,
     /// Failures it had, and why it stopped, if it did.
     pub failures: u32,
+    /// Photon paths traced by its accepted results (progressive passes).
+    pub photon_paths: u64,
+    /// Seconds it spent tracing those photons and building their maps.
+    pub photon_s: f64,
+    /// Seconds it spent decoding the job's blobs (the scene, and photon maps when shipped).
+    pub load_s: f64,
     /// `active`, or why it was refused, lost or dropped.
     pub state: String,
 }
@@ -39,12 +45,24 @@ pub struct WorkerReport {
 /// The per-worker table.
 pub fn print_workers(workers: &[WorkerReport]) {
     println!(
-        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>8} {:>8}  state",
-        "worker", "platform", "threads", "strips", "busy s", "Mpx/s", "shipped", "ship s", "spec/dup", "failures"
+        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>7} {:>12} {:>8} {:>8} {:>8}  state",
+        "worker",
+        "platform",
+        "threads",
+        "units",
+        "busy s",
+        "Mpx/s",
+        "shipped",
+        "ship s",
+        "load s",
+        "photon paths",
+        "photon s",
+        "spec/dup",
+        "failures"
     );
     for w in workers {
         println!(
-            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>8} {:>8}  {}",
+            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>7.2} {:>12} {:>8.2} {:>8} {:>8}  {}",
             w.name,
             w.platform,
             w.threads,
@@ -53,6 +71,9 @@ pub fn print_workers(workers: &[WorkerReport]) {
             w.mpix_per_s,
             human_bytes(w.shipped_bytes),
             w.ship_s,
+            w.load_s,
+            w.photon_paths,
+            w.photon_s,
             format!("{}/{}", w.speculative, w.duplicates),
             w.failures,
             w.state
@@ -91,13 +112,20 @@ impl Summary<'_> {
         let settings = self.settings;
         let (width, height) = self.size;
         // Progressive photon mapping takes one camera sample per pass; the others take `spp`.
-        let samples = if settings.integrator == Integrator::Progressive {
-            format!("{} passes of {} photon paths", settings.photons.passes, settings.photons.pass_photons)
-        } else {
-            format!("{} spp", settings.spp)
+        let ph = &settings.photons;
+        let samples = match settings.integrator {
+            Integrator::Progressive => format!(
+                "{} passes of {} photon paths ({} paths traced on the workers)",
+                ph.passes, ph.pass_photons, outcome.photon_paths
+            ),
+            Integrator::PhotonMap | Integrator::FinalGather => {
+                format!("{} spp, photon maps of {} paths traced when preparing", settings.spp, ph.global)
+            }
+            _ => format!("{} spp", settings.spp),
         };
+        let units = if settings.integrator == Integrator::Progressive { "pass blocks" } else { "strips" };
         let mut extras =
-            if outcome.resumed > 0 { format!(", {} strips resumed", outcome.resumed) } else { String::new() };
+            if outcome.resumed > 0 { format!(", {} {units} resumed", outcome.resumed) } else { String::new() };
         if let Some(h) = self.hits {
             let word = |hit: bool| if hit { "cached" } else { "built" };
             extras.push_str(&format!(", scene {}", word(h.scene)));
@@ -172,15 +200,14 @@ impl fmt::Display for Warning {
     }
 }
 
-/// The progress bar of a render (hidden unless `show`), starting at the strips resumed.
-pub fn progress_bar(show: bool, strips: usize, resumed: usize) -> indicatif::ProgressBar {
+/// The progress bar of a render (hidden unless `show`), counting `units` (strips, pass blocks) from those resumed.
+pub fn progress_bar(show: bool, strips: usize, resumed: usize, units: &str) -> indicatif::ProgressBar {
     if !show {
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::new(strips as u64);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} strips {msg}")
-    {
+    let template = format!("{{spinner}} [{{elapsed_precise}}] {{bar:32}} {{pos}}/{{len}} {units} {{msg}}");
+    if let Ok(style) = indicatif::ProgressStyle::with_template(&template) {
         bar.set_style(style);
     }
     bar.set_position(resumed as u64);

@@ -331,6 +331,25 @@ pub enum StripError {
         /// The value.
         value: f32,
     },
+    /// A pass sum that no block of this many passes can add up to, in values that hash to the worker's checksum:
+    /// as for [`StripError::NotRadiance`], the build itself computed it.
+    #[error("pixel ({x}, {y}) holds the pass sum {value}: not the sum of {passes} passes")]
+    NotPassSum {
+        /// Column.
+        x: u32,
+        /// Row.
+        y: u32,
+        /// The sum.
+        value: i64,
+        /// Passes in the block.
+        passes: u32,
+    },
+    /// Pixels where pass sums were asked for, or the other way round.
+    #[error("the worker sent {} where {} were asked for", if *sums { "pixels" } else { "pass sums" }, if *sums { "pass sums" } else { "pixels" })]
+    WrongKind {
+        /// Whether pass sums were asked for.
+        sums: bool,
+    },
     /// A message with no event.
     #[error("an empty event")]
     EmptyEvent,
@@ -350,7 +369,12 @@ impl StripError {
     /// Another attempt could succeed; `false` when the job itself cannot render (another worker would fail the
     /// same way).
     pub fn retryable(&self) -> bool {
-        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. } | Self::NotRadiance { .. })
+        !matches!(
+            self,
+            Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. }
+                | Self::NotRadiance { .. }
+                | Self::NotPassSum { .. }
+        )
     }
 
     /// The failure counts against the worker: it misbehaved, rather than being busy or cancelled, or the job
@@ -369,7 +393,7 @@ impl StripError {
                     | Code::DeadlineExceeded
             ),
             // Not the worker's fault: the same build renders the same pixel the same way everywhere.
-            Self::StreamEnded | Self::NotRadiance { .. } => false,
+            Self::StreamEnded | Self::NotRadiance { .. } | Self::NotPassSum { .. } => false,
             _ => true,
         }
     }
@@ -386,16 +410,37 @@ impl From<tonic::Status> for StripError {
     }
 }
 
-/// Asks `client` for the rows of one strip and validates what comes back.
+/// What a worker sent back for one strip: its values and the worker's summary.
+#[derive(Clone, Debug)]
+pub struct StripResult {
+    /// The values.
+    pub data: StripData,
+    /// Rays, photon paths and seconds, as the worker reported them (the checksum already checked).
+    pub summary: pb::StripSummary,
+}
+
+/// The values of a strip.
+#[derive(Clone, Debug)]
+pub enum StripData {
+    /// Linear RGB radiance, 3 floats per pixel, row-major.
+    Pixels(Vec<f32>),
+    /// Progressive photon mapping's fixed-point pass sums, 3 per pixel, row-major.
+    Sums(Vec<i64>),
+}
+
+/// Asks `client` for one strip (rows, or a pass block over rows) and validates what comes back: whole rows in
+/// order, the right length, the checksum, and values that a renderer can produce (finite non-negative
+/// radiance, or pass sums within their range).
 pub async fn fetch_strip(
     mut client: Client,
     request: pb::StripRequest,
     width: u32,
     progress: impl Fn(u32),
-) -> Result<(Vec<f32>, u64), StripError> {
+) -> Result<StripResult, StripError> {
     let (row_start, row_end) = (request.row_start, request.row_end);
+    let block = request.pass_end.saturating_sub(request.pass_start);
     let mut stream = client.render_strip(request).await?.into_inner();
-    let row_bytes = 12 * width as usize;
+    let row_bytes = 3 * if block > 0 { 8 } else { 4 } * width as usize;
     let expected = row_bytes * (row_end - row_start) as usize;
     let mut bytes: Vec<u8> = Vec::with_capacity(expected);
     loop {
@@ -404,22 +449,14 @@ pub async fn fetch_strip(
             Ok(None) => return Err(StripError::StreamEnded),
             Err(s) => return Err(s.into()),
         };
-        match event.event {
-            Some(WireEvent::RowsDone(n)) => progress(n),
-            Some(WireEvent::Rows(rows)) => {
-                let next_row = row_start + (bytes.len() / row_bytes.max(1)) as u32;
-                if rows.first_row != next_row || rows.data.len() % row_bytes.max(1) != 0 {
-                    return Err(StripError::RowsOutOfOrder {
-                        bytes: rows.data.len(),
-                        first_row: rows.first_row,
-                        next_row,
-                    });
-                }
-                if bytes.len() + rows.data.len() > expected {
-                    return Err(StripError::TooManyPixels { row_start, row_end });
-                }
-                bytes.extend_from_slice(&rows.data);
+        let rows = match event.event {
+            Some(WireEvent::RowsDone(n)) => {
+                progress(n);
+                continue;
             }
+            Some(WireEvent::Rows(rows)) if block == 0 => rows,
+            Some(WireEvent::Sums(rows)) if block > 0 => rows,
+            Some(WireEvent::Rows(_) | WireEvent::Sums(_)) => return Err(StripError::WrongKind { sums: block > 0 }),
             Some(WireEvent::Done(summary)) => {
                 if bytes.len() != expected {
                     return Err(StripError::ShortStrip { got: bytes.len(), expected });
@@ -427,16 +464,51 @@ pub async fn fetch_strip(
                 if summary.checksum != photon_proto::checksum(&bytes) {
                     return Err(StripError::ChecksumMismatch);
                 }
-                let pixels = photon_proto::bytes_to_pixels(&bytes).unwrap_or_default();
-                if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
-                    let (x, y) = ((i / 3) as u32 % width.max(1), row_start + (i / 3) as u32 / width.max(1));
-                    return Err(StripError::NotRadiance { x, y, value: pixels[i] });
-                }
-                return Ok((pixels, summary.rays));
+                let data = if block > 0 {
+                    sums_of(&bytes, block, width, row_start)?
+                } else {
+                    pixels_of(&bytes, width, row_start)?
+                };
+                return Ok(StripResult { data, summary });
             }
             None => return Err(StripError::EmptyEvent),
+        };
+        let next_row = row_start + (bytes.len() / row_bytes.max(1)) as u32;
+        if rows.first_row != next_row || rows.data.len() % row_bytes.max(1) != 0 {
+            return Err(StripError::RowsOutOfOrder { bytes: rows.data.len(), first_row: rows.first_row, next_row });
         }
+        if bytes.len() + rows.data.len() > expected {
+            return Err(StripError::TooManyPixels { row_start, row_end });
+        }
+        bytes.extend_from_slice(&rows.data);
     }
+}
+
+/// The pixel of value `i` (3 per pixel) of rows from `row_start`.
+fn pixel_of(i: usize, width: u32, row_start: u32) -> (u32, u32) {
+    ((i / 3) as u32 % width.max(1), row_start + (i / 3) as u32 / width.max(1))
+}
+
+/// Radiance pixels from checked bytes: every value finite and non-negative.
+fn pixels_of(bytes: &[u8], width: u32, row_start: u32) -> Result<StripData, StripError> {
+    let pixels = photon_proto::bytes_to_pixels(bytes).unwrap_or_default();
+    if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
+        let (x, y) = pixel_of(i, width, row_start);
+        return Err(StripError::NotRadiance { x, y, value: pixels[i] });
+    }
+    Ok(StripData::Pixels(pixels))
+}
+
+/// Pass sums from checked bytes: every value within what `block` passes can add.
+fn sums_of(bytes: &[u8], block: u32, width: u32, row_start: u32) -> Result<StripData, StripError> {
+    let sums = photon_proto::bytes_to_sums(bytes).unwrap_or_default();
+    if let Err(photon_core::render::progressive::PassSumsError::OutOfRange { index, value, .. }) =
+        photon_core::render::progressive::check_sums(&sums, block)
+    {
+        let (x, y) = pixel_of(index, width, row_start);
+        return Err(StripError::NotPassSum { x, y, value, passes: block });
+    }
+    Ok(StripData::Sums(sums))
 }
 
 #[cfg(test)]

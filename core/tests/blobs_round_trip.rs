@@ -1,10 +1,10 @@
 //! A prepared scene sent as blobs (scene, photons, frame) renders the same bytes as the original, for a method
-//! with photon maps and for progressive photon mapping with shared passes; a cancelled render stops.
+//! with photon maps and for progressive photon mapping, cut into strips anywhere; a cancelled render stops.
 
 #![allow(clippy::unwrap_used)]
 
 use photon_core::prepare::Prepared;
-use photon_core::render::{PassMaps, render_strip, render_strip_with};
+use photon_core::render::{render_strip, render_strip_with};
 use photon_core::scene::{Integrator, Scene};
 use std::path::Path;
 use std::sync::atomic::{AtomicU32, Ordering};
@@ -37,25 +37,12 @@ fn blobs_render_the_same_bytes() {
         let back = Prepared::from_blobs(&scene, photons.as_deref(), &frame, usize::MAX).unwrap();
         let h = prep.camera.height;
         let a = render_strip(&prep, 0..h, &|_| {});
-        // Progressive passes shared between two strips give the same bytes as tracing them per strip.
-        let shared = PassMaps::new(&back.settings, 1 << 30);
+        // Strips cut anywhere give the same bytes as the whole image.
         let mut b = Vec::new();
         for rows in [0..7, 7..h] {
-            b.extend(render_strip_with(&back, rows, &shared, &|_| true).unwrap().pixels);
+            b.extend(render_strip_with(&back, rows, &|_| true).unwrap().pixels);
         }
         assert_eq!(bits(&a.pixels), bits(&b), "{integrator}");
-        let kept = if integrator == Integrator::Progressive { 3 } else { 0 };
-        assert_eq!(shared.kept_passes(), kept, "{integrator}");
-        if integrator == Integrator::Progressive {
-            // A budget for one pass keeps the first and traces the others again, with the same pixels.
-            let one = PassMaps::new(&back.settings, shared.kept_bytes() / 3 + 1024);
-            let mut c = Vec::new();
-            for rows in [0..5, 5..h] {
-                c.extend(render_strip_with(&back, rows, &one, &|_| true).unwrap().pixels);
-            }
-            assert_eq!(one.kept_passes(), 1);
-            assert_eq!(bits(&a.pixels), bits(&c));
-        }
         assert!(a.pixels.iter().any(|&v| v > 0.0));
     }
 }
@@ -69,8 +56,7 @@ fn a_cancelled_render_stops_early() {
             calls.fetch_add(1, Ordering::Relaxed);
             false
         };
-        let passes = PassMaps::new(&prep.settings, 0);
-        let out = render_strip_with(&prep, 0..prep.camera.height, &passes, &cancel);
+        let out = render_strip_with(&prep, 0..prep.camera.height, &cancel);
         assert!(out.is_none(), "{integrator}");
         // Rows already started finish; no new row starts once the first one has asked to stop (one per thread).
         let started = calls.load(Ordering::Relaxed);

@@ -100,6 +100,7 @@ async fn bad_requests_are_refused_and_the_worker_keeps_serving() {
         row_end: rows.1,
         strip: 0,
         attempt: 1,
+        ..Default::default()
     };
     let unknown = photon_proto::blob_id(b"never sent");
     let e = c.render_strip(strip(&unknown, (0, 1))).await.unwrap_err();
@@ -147,6 +148,7 @@ async fn rows_outside_the_image_are_refused() {
         row_end: rows.1,
         strip: 0,
         attempt: 1,
+        ..Default::default()
     };
     let e = stream_error(&mut c, req((2, 9))).await;
     assert_eq!(e.code(), Code::OutOfRange);
@@ -160,4 +162,52 @@ async fn rows_outside_the_image_are_refused() {
         }
     }
     assert_eq!(bytes, 4 * 8 * 12);
+}
+
+#[tokio::test]
+async fn pass_blocks_are_checked_against_the_job() {
+    let path = photon_tests::scenes_dir().join("cornell.toml");
+    let mut scene = photon_core::scene::Scene::load(&path).unwrap();
+    scene.camera.width = 8;
+    scene.camera.height = 4;
+    scene.render.photons.passes = 5;
+    scene.render.photons.pass_photons = 500;
+    let w = WorkerProcess::start(&[]);
+    let mut c = client(&w).await;
+    for integrator in [photon_core::scene::Integrator::Progressive, photon_core::scene::Integrator::Path] {
+        scene.render.integrator = integrator;
+        let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap();
+        let blob = prep.encode_scene().unwrap();
+        let id = photon_proto::blob_id(&blob);
+        put(&mut c, chunks(&id, blob.len() as u64, &[&blob])).await.unwrap();
+        let req = |passes: (u32, u32)| pb::StripRequest {
+            scene_blob: id.clone(),
+            frame: prep.encode_frame().unwrap(),
+            row_start: 0,
+            row_end: 4,
+            pass_start: passes.0,
+            pass_end: passes.1,
+            ..Default::default()
+        };
+        if integrator == photon_core::scene::Integrator::Progressive {
+            for bad in [(0, 0), (3, 2), (4, 6)] {
+                let e = stream_error(&mut c, req(bad)).await;
+                assert_eq!(e.code(), Code::OutOfRange, "{bad:?}");
+                assert!(e.message().contains("within the job's 5 passes"), "{}", e.message());
+            }
+            // A valid block: i64 sums, 8 bytes per value.
+            let mut stream = c.render_strip(req((1, 3))).await.unwrap().into_inner();
+            let mut bytes = 0;
+            while let Some(ev) = stream.message().await.unwrap() {
+                if let Some(pb::strip_event::Event::Sums(r)) = ev.event {
+                    bytes += r.data.len();
+                }
+            }
+            assert_eq!(bytes, 4 * 8 * 24);
+        } else {
+            let e = stream_error(&mut c, req((0, 2))).await;
+            assert_eq!(e.code(), Code::InvalidArgument);
+            assert!(e.message().contains("not progressive photon mapping"), "{}", e.message());
+        }
+    }
 }

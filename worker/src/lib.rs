@@ -19,7 +19,9 @@ pub mod disk_store;
 
 use cache::BlobCache;
 use photon_core::prepare::Prepared;
-use photon_core::render::{PassMaps, render_strip_with};
+use photon_core::render::progressive::{MAX_BLOCK_PASSES, render_passes};
+use photon_core::render::render_strip_with;
+use photon_core::scene::Integrator;
 use photon_proto::pb::render_server::{Render, RenderServer};
 use photon_proto::pb::{self, strip_event::Event};
 use photon_proto::{MAX_CHUNK, MAX_MESSAGE};
@@ -49,9 +51,6 @@ pub struct Config {
     pub max_blob_bytes: u64,
     /// Strip requests that may wait behind the one rendering.
     pub max_queue: usize,
-    /// Memory for sharing progressive photon passes between the strips of one job, in bytes (default: a quarter
-    /// of the machine's memory, at least 1 GiB).
-    pub pass_budget_bytes: u64,
     /// The build id this worker claims (the real one unless a test pretends otherwise).
     pub build_id: String,
     /// The math mode this worker claims (the real one, [`photon_core::math::fmath::MODE`], unless a test pretends
@@ -71,7 +70,6 @@ impl Default for Config {
             disk_cache: None,
             max_blob_bytes: 4 << 30,
             max_queue: 4,
-            pass_budget_bytes: (memory_bytes() / 4).max(1 << 30),
             build_id: photon_proto::BUILD_ID.to_owned(),
             math_mode: photon_core::math::fmath::MODE.to_owned(),
             fault: Fault::None,
@@ -95,11 +93,10 @@ pub enum Fault {
     NanPixels,
 }
 
-/// The decoded scene of one job, with its shared progressive passes.
+/// The decoded scene of one job.
 struct Job {
     key: [String; 3],
     prep: Prepared,
-    passes: PassMaps,
 }
 
 /// The render service.
@@ -364,7 +361,6 @@ impl Render for Worker {
             pool: self.pool.clone(),
             blobs: self.blobs.clone(),
             jobs: self.jobs.clone(),
-            pass_budget: self.config.pass_budget_bytes,
             corrupt_left: self.corrupt_left.clone(),
             delay: match self.config.fault {
                 Fault::Delay(ms) => std::time::Duration::from_millis(ms),
@@ -403,7 +399,6 @@ struct StripContext {
     pool: Arc<rayon::ThreadPool>,
     blobs: Arc<BlobCache>,
     jobs: Arc<Mutex<Vec<Arc<Job>>>>,
-    pass_budget: u64,
     corrupt_left: Arc<AtomicU32>,
     delay: std::time::Duration,
     /// Test only: a NaN in every strip ([`Fault::NanPixels`]).
@@ -413,15 +408,16 @@ struct StripContext {
 type Event_ = Result<pb::StripEvent, Status>;
 
 impl StripContext {
-    /// The job of a request: from the cache, or decoded from its blobs.
-    fn job(&self, r: &pb::StripRequest) -> Result<Arc<Job>, Status> {
+    /// The job of a request: from the cache, or decoded from its blobs; with the seconds spent decoding.
+    fn job(&self, r: &pb::StripRequest) -> Result<(Arc<Job>, f64), Status> {
         let key = [r.scene_blob.clone(), r.photons_blob.clone(), photon_proto::blob_id(&r.frame)];
         let mut jobs = self.jobs.lock().map_err(|_| Status::internal("job cache poisoned"))?;
         if let Some(i) = jobs.iter().position(|j| j.key == key) {
             let job = jobs.remove(i);
             jobs.push(job.clone());
-            return Ok(job);
+            return Ok((job, 0.0));
         }
+        let t0 = Instant::now();
         let blob = |id: &str| {
             self.blobs.get(id).ok_or_else(|| Status::not_found(format!("blob {id} was evicted; upload it again")))
         };
@@ -429,18 +425,17 @@ impl StripContext {
         let photons = if r.photons_blob.is_empty() { None } else { Some(blob(&r.photons_blob)?) };
         let prep = Prepared::from_blobs(&scene, photons.as_deref().map(Vec::as_slice), &r.frame, usize::MAX)
             .map_err(|e| Status::invalid_argument(format!("the job's blobs do not decode: {e}")))?;
-        let passes = PassMaps::new(&prep.settings, self.pass_budget);
-        let job = Arc::new(Job { key, prep, passes });
+        let job = Arc::new(Job { key, prep });
         jobs.push(job.clone());
         if jobs.len() > Worker::JOBS_KEPT {
             jobs.remove(0);
         }
-        Ok(job)
+        Ok((job, t0.elapsed().as_secs_f64()))
     }
 
     /// Renders the strip, sending progress on `tx` as it goes; returns the pixel and summary events.
     fn render(&self, r: &pb::StripRequest, tx: &mpsc::Sender<Event_>) -> Result<Vec<Event_>, Status> {
-        let job = self.job(r)?;
+        let (job, load_seconds) = self.job(r)?;
         let (width, height) = (job.prep.camera.width, job.prep.camera.height);
         if r.row_end > height {
             return Err(Status::out_of_range(format!(
@@ -448,6 +443,7 @@ impl StripContext {
                 r.row_start, r.row_end
             )));
         }
+        check_passes(r, &job.prep)?;
         tracing::info!(strip = r.strip, attempt = r.attempt, rows = ?(r.row_start..r.row_end), "rendering strip");
         if !self.delay.is_zero() {
             // Test-only slowness, in small steps so a cancelled strip stops waiting.
@@ -466,38 +462,84 @@ impl StripContext {
             !tx.is_closed()
         };
         let prep = &job.prep;
-        let strip = self.pool.install(|| render_strip_with(prep, r.row_start..r.row_end, &job.passes, &progress));
-        let Some(strip) = strip else {
-            return Err(Status::cancelled("the coordinator cancelled the strip"));
+        let rows = r.row_start..r.row_end;
+        let cancelled = || Status::cancelled("the coordinator cancelled the strip");
+        let (mut bytes, value_bytes, mut summary) = if r.pass_end > r.pass_start {
+            let block = self.pool.install(|| render_passes(prep, rows, r.pass_start..r.pass_end, &progress));
+            let block = block.ok_or_else(cancelled)?;
+            let mut sums = block.sums;
+            if self.nan_pixels
+                && let Some(v) = sums.first_mut()
+            {
+                tracing::warn!(strip = r.strip, "fault injection: an impossible pass sum before the checksum");
+                *v = -1;
+            }
+            let summary = pb::StripSummary {
+                rays: block.rays,
+                photon_paths: block.photon_paths,
+                photon_seconds: block.photon_seconds,
+                ..Default::default()
+            };
+            (photon_proto::sums_to_bytes(&sums), 8, summary)
+        } else {
+            let strip = self.pool.install(|| render_strip_with(prep, rows, &progress)).ok_or_else(cancelled)?;
+            let mut pixels = strip.pixels;
+            if self.nan_pixels
+                && let Some(p) = pixels.first_mut()
+            {
+                tracing::warn!(strip = r.strip, "fault injection: a NaN pixel before the checksum");
+                *p = f32::NAN;
+            }
+            let summary = pb::StripSummary { rays: strip.rays, ..Default::default() };
+            (photon_proto::pixels_to_bytes(&pixels), 4, summary)
         };
-        let render_seconds = t0.elapsed().as_secs_f64();
-        let mut pixels = strip.pixels;
-        if self.nan_pixels
-            && let Some(p) = pixels.first_mut()
-        {
-            tracing::warn!(strip = r.strip, "fault injection: a NaN pixel before the checksum");
-            *p = f32::NAN;
-        }
-        let mut bytes = photon_proto::pixels_to_bytes(&pixels);
+        summary.render_seconds = t0.elapsed().as_secs_f64();
+        summary.load_seconds = load_seconds;
         let checksum = photon_proto::checksum(&bytes).to_vec();
         let corrupt = self.corrupt_left.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1));
         if corrupt.is_ok() && bytes.len() >= 4 {
             tracing::warn!(strip = r.strip, "fault injection: corrupting a pixel after the checksum");
             bytes[0] ^= 0x40;
         }
-        let row_bytes = 12 * width as usize;
+        summary.checksum = checksum;
+        let row_bytes = 3 * value_bytes * width as usize;
         let rows_per_chunk = (MAX_CHUNK / row_bytes.max(1)).max(1);
         let mut events: Vec<Event_> = bytes
             .chunks(rows_per_chunk * row_bytes)
             .enumerate()
             .map(|(i, c)| {
                 let first_row = r.row_start + (i * rows_per_chunk) as u32;
-                Ok(pb::StripEvent { event: Some(Event::Rows(pb::PixelRows { first_row, data: c.to_vec() })) })
+                let rows = pb::PixelRows { first_row, data: c.to_vec() };
+                Ok(pb::StripEvent { event: Some(if value_bytes == 8 { Event::Sums(rows) } else { Event::Rows(rows) }) })
             })
             .collect();
-        events.push(Ok(pb::StripEvent {
-            event: Some(Event::Done(pb::StripSummary { checksum, rays: strip.rays, render_seconds })),
-        }));
+        events.push(Ok(pb::StripEvent { event: Some(Event::Done(summary)) }));
         Ok(events)
     }
+}
+
+/// Checks a request's passes against its job: a pass block for progressive photon mapping, none otherwise.
+fn check_passes(r: &pb::StripRequest, prep: &Prepared) -> Result<(), Status> {
+    let progressive = prep.settings.integrator == Integrator::Progressive;
+    let total = prep.settings.photons.passes;
+    let (start, end) = (r.pass_start, r.pass_end);
+    if !progressive {
+        if (start, end) != (0, 0) {
+            return Err(Status::invalid_argument(format!(
+                "pass_start/pass_end {start}..{end} given for a job that is not progressive photon mapping; expected 0..0"
+            )));
+        }
+        return Ok(());
+    }
+    if start >= end || end > total {
+        return Err(Status::out_of_range(format!(
+            "pass_start/pass_end {start}..{end}: expected a non-empty block within the job's {total} passes"
+        )));
+    }
+    if end - start > MAX_BLOCK_PASSES {
+        return Err(Status::invalid_argument(format!(
+            "pass_start/pass_end {start}..{end}: expected at most {MAX_BLOCK_PASSES} passes in one block"
+        )));
+    }
+    Ok(())
 }

@@ -1,6 +1,7 @@
 //! The scheduler's vocabulary: worker and strip ids, the policy's knobs, and what the state machine answers
 //! (assignments, completions, failures and their outcomes, per-worker numbers).
 
+use photon_core::render::progressive::MAX_BLOCK_PASSES;
 use std::fmt;
 use std::ops::Range;
 use std::time::Duration;
@@ -65,12 +66,12 @@ pub fn rows_per_strip_for(height: u32, workers: u32) -> u32 {
     height.div_ceil(target_strips).clamp(1, 64)
 }
 
-/// Rows per strip for progressive photon mapping: about 4 strips per worker. Every strip needs the photon maps of
-/// every pass; a worker keeps them for its next strip only as far as its memory allows, and traces them again
-/// beyond that, so fewer, taller strips bound the repeated tracing (measured: 512 passes of 100 000 photons on a
-/// 32×32 image took 451 s in 16 strips on one worker that kept no maps, and 39 s in 4 strips that kept them).
-pub fn rows_per_strip_progressive(height: u32, workers: u32) -> u32 {
-    height.div_ceil(workers.max(1).saturating_mul(4)).max(1)
+/// Passes per block for progressive photon mapping over `workers` workers: about 4 blocks per worker, so that
+/// pulls balance speeds, never more than [`MAX_BLOCK_PASSES`] nor fewer than 1. Each block renders the whole image
+/// and traces its passes' photons once, so fewer blocks mean fewer full images to send; the cut never changes
+/// a pixel (the sums are exact).
+pub fn passes_per_block_for(passes: u32, workers: u32) -> u32 {
+    passes.div_ceil(workers.max(1).saturating_mul(4)).clamp(1, MAX_BLOCK_PASSES)
 }
 
 /// One strip given to one worker.

@@ -7,8 +7,6 @@
 
 pub mod progressive;
 
-pub use progressive::PassMaps;
-
 use crate::Rgb;
 use crate::integrator::li;
 use crate::math::Ray;
@@ -29,32 +27,29 @@ pub struct Strip {
     pub pixels: Vec<f32>,
     /// Rays traced.
     pub rays: u64,
+    /// Photon paths traced while rendering the strip (progressive photon mapping's passes; 0 for the other
+    /// methods, whose maps are traced once when the job is prepared).
+    pub photon_paths: u64,
 }
 
 /// Renders rows `rows` of the image. `progress` is called with the number of rows finished so far.
 pub fn render_strip(prep: &Prepared, rows: Range<u32>, progress: &(dyn Fn(u32) + Sync)) -> Strip {
-    let passes = PassMaps::new(&prep.settings, 0);
     let never_cancel = |n| {
         progress(n);
         true
     };
-    let Some(strip) = render_strip_with(prep, rows, &passes, &never_cancel) else {
+    let Some(strip) = render_strip_with(prep, rows, &never_cancel) else {
         unreachable!("a render whose progress callback never cancels always finishes")
     };
     strip
 }
 
-/// Renders rows `rows` of the image, sharing progressive photon passes through `passes`. `progress` is called
-/// with the number of rows finished so far and returns `false` to cancel; a cancelled render returns `None`
-/// soon after (rows already started finish first).
-pub fn render_strip_with(
-    prep: &Prepared,
-    rows: Range<u32>,
-    passes: &PassMaps,
-    progress: &(dyn Fn(u32) -> bool + Sync),
-) -> Option<Strip> {
+/// Renders rows `rows` of the image (for progressive photon mapping, every pass). `progress` is called with the
+/// number of rows finished so far and returns `false` to cancel; a cancelled render returns `None` soon after
+/// (rows already started finish first).
+pub fn render_strip_with(prep: &Prepared, rows: Range<u32>, progress: &(dyn Fn(u32) -> bool + Sync)) -> Option<Strip> {
     if prep.settings.integrator == Integrator::Progressive {
-        return progressive::render_strip(prep, rows, passes, progress);
+        return progressive::render_strip(prep, rows, progress);
     }
     let width = prep.camera.width;
     let done = AtomicU32::new(0);
@@ -84,7 +79,7 @@ pub fn render_strip_with(
     }
     let rays = per_row.iter().map(|r| r.1).sum();
     let pixels = per_row.into_iter().flat_map(|r| r.0).collect();
-    Some(Strip { rows, pixels, rays })
+    Some(Strip { rows, pixels, rays, photon_paths: 0 })
 }
 
 /// The mean radiance of pixel `(x, y)` over `render.spp` samples. Non-finite samples (which a correct

@@ -1,8 +1,26 @@
-//! `progressive`: stochastic progressive photon mapping (Hachisuka & Jensen 2009; pbrt-v3's SPPM). A pass
-//! traces fresh photons and takes one camera sample per pixel; each pixel keeps its statistics (photon count,
-//! shrinking radius, accumulated flux) across passes, so this method renders whole strips, not single rays.
-//! It lives here, beside the strip loop it replaces, and reads the per-ray building blocks of
-//! [`crate::integrator`].
+//! `progressive`: probabilistic progressive photon mapping (Knaus & Zwicker 2011, "Progressive Photon Mapping:
+//! A Probabilistic Approach", ACM TOG 30(3)).
+//!
+//! Pass `p` (0-based, numbered over the whole render) traces its own photons from the streams `(seed, p + 2, i)`
+//! (0 and 1 belong to the static global and caustic maps), takes camera sample `p` of each pixel, and estimates
+//! that pixel's radiance with a box kernel of a radius that depends only on the pass index:
+//!
+//! `r_{i+1}² = r_i² · (i + α) / (i + 1)` (1-based `i`; Knaus & Zwicker, eq. 15), `r_1 = render.photons.radius`.
+//!
+//! The passes are independent estimates, and averaging them makes both the variance (`O(1/N^α)`) and the bias
+//! (`O(1/N^(1−α))`) vanish (their §4), so the method is consistent. No state is carried from pass to pass, so
+//! passes can be rendered anywhere: the farm hands out whole-image **pass blocks**, and each pass is traced
+//! exactly once in the whole farm.
+//!
+//! Direct light comes from light sampling at the visible point; photons carry indirect light only
+//! (light → anything⁺ → diffuse), so each light path is counted once.
+//!
+//! # Exact sums, so the farm's cut never changes a pixel
+//! A pass's estimate of each pixel channel is rounded to a fixed-point integer with [`SUM_FRACTION_BITS`]
+//! fraction bits (a quantum of 6·10⁻⁸; values are clamped to `[0, MAX_PASS_RADIANCE]`) and the passes are
+//! added as integers. Integer addition is exact and associative, so the image is the same whatever the blocks,
+//! their order of arrival, the workers and the threads: it depends only on (scene, seed, passes). A block of at
+//! most [`MAX_BLOCK_PASSES`] passes fits `i64`; the whole render is summed in `i128` ([`PassAccumulator`]).
 
 use super::{Strip, camera_sample, pixel_rotation};
 use crate::Rgb;
@@ -10,162 +28,315 @@ use crate::integrator::{sample_one_light, visible_point};
 use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux};
 use crate::prepare::Prepared;
 use crate::prepare::photons::{PhotonKind, trace_photons};
-use crate::scene::{Integrator, RenderSettings};
 use rayon::prelude::*;
 use std::ops::Range;
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, OnceLock};
+use std::time::Instant;
 
-/// The photon maps of progressive photon mapping's passes, traced once per job and shared by all the strips a
-/// process renders of it, as far as a memory budget allows: passes whose maps no longer fit are traced again by
-/// every strip. A pass's map depends only on the prepared scene, the settings and the pass index, so sharing it
-/// changes no pixel.
-pub struct PassMaps {
-    /// One slot per pass (none when the method is not progressive); a slot stays empty for a pass whose map
-    /// did not fit the budget.
-    maps: Vec<OnceLock<Arc<PhotonMap>>>,
-    budget: u64,
-    used: AtomicU64,
+/// Fraction bits of the fixed-point pass sums: one unit is 2⁻²⁴ W·sr⁻¹·m⁻².
+pub const SUM_FRACTION_BITS: u32 = 24;
+
+/// The largest radiance one pass may add to a pixel channel (2²⁴ W·sr⁻¹·m⁻²); a larger estimate (a firefly of a
+/// vanishing radius, or an emitter brighter than this seen directly) is clamped to it.
+pub const MAX_PASS_RADIANCE: f32 = 16_777_216.0;
+
+/// The most passes one block may hold: `MAX_BLOCK_PASSES × 2⁴⁸` (the largest fixed-point value of one pass) stays
+/// below `i64::MAX = 2⁶³ − 1`.
+pub const MAX_BLOCK_PASSES: u32 = (1 << 15) - 1;
+
+/// The largest fixed-point value one pass adds to one channel.
+pub const MAX_PASS_SUM: i64 = (MAX_PASS_RADIANCE as i64) << SUM_FRACTION_BITS;
+
+/// Photon-map memory a block may hold at once while it traces passes side by side (bytes): beyond it, fewer
+/// passes are traced at once. It changes the speed, never a pixel.
+const GROUP_MAP_BYTES: u64 = 1 << 29;
+
+/// The squared gather radius of pass `pass` (0-based): `r0² · Π_{i=1}^{pass} (i + α) / (i + 1)` (Knaus &
+/// Zwicker 2011, eq. 15), computed in f64 in a fixed order.
+pub fn pass_radius2(r0: f32, alpha: f32, pass: u32) -> f32 {
+    let alpha = f64::from(alpha);
+    let ratio: f64 = (1..=pass).map(|i| (f64::from(i) + alpha) / (f64::from(i) + 1.0)).product();
+    (f64::from(r0) * f64::from(r0) * ratio) as f32
 }
 
-impl PassMaps {
-    /// Shares the passes of `settings` (when the method is progressive) while their maps take at most `budget`
-    /// bytes in all; `budget` 0 never shares.
-    pub fn new(settings: &RenderSettings, budget: u64) -> Self {
-        let n = if settings.integrator == Integrator::Progressive { settings.photons.passes as usize } else { 0 };
-        Self { maps: (0..n).map(|_| OnceLock::new()).collect(), budget, used: AtomicU64::new(0) }
+/// The fixed-point value of one pass's estimate of one channel: `round(v · 2²⁴)`, with `v` clamped to
+/// `[0, MAX_PASS_RADIANCE]` and a non-finite `v` taken as 0.
+#[inline]
+pub fn to_fixed(v: f32) -> i64 {
+    if !v.is_finite() {
+        return 0;
     }
+    (f64::from(v.clamp(0.0, MAX_PASS_RADIANCE)) * f64::from(1u32 << SUM_FRACTION_BITS)).round() as i64
+}
 
-    /// Bytes of the maps kept so far.
-    pub fn kept_bytes(&self) -> u64 {
-        self.used.load(Ordering::Relaxed)
-    }
+/// The pixel sums of a block of passes over some rows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PassSums {
+    /// The rows rendered.
+    pub rows: Range<u32>,
+    /// The passes rendered.
+    pub passes: Range<u32>,
+    /// Per pixel channel (3 per pixel, row-major), the sum over the passes of [`to_fixed`] of its estimate.
+    pub sums: Vec<i64>,
+    /// Rays traced.
+    pub rays: u64,
+    /// Photon paths traced.
+    pub photon_paths: u64,
+    /// Seconds spent tracing photons and building their maps (wall clock).
+    pub photon_seconds: f64,
+}
 
-    /// Passes whose maps are kept for the next strip.
-    pub fn kept_passes(&self) -> usize {
-        self.maps.iter().filter(|m| m.get().is_some()).count()
-    }
+/// Why a block's sums cannot be valid.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum PassSumsError {
+    /// A sum lies outside `[0, passes × MAX_PASS_SUM]`.
+    #[error("value {index} of a block of {passes} passes is {value}, outside [0, {max}]")]
+    OutOfRange {
+        /// Index of the value (3 per pixel).
+        index: usize,
+        /// The value.
+        value: i64,
+        /// Passes in the block.
+        passes: u32,
+        /// The largest valid value.
+        max: i64,
+    },
+}
 
-    /// The photon map of `pass`: the kept one, or traced now (and kept if it fits). `None` when it cannot be
-    /// built (no photon was stored).
-    fn get(&self, prep: &Prepared, pass: u32) -> Option<Arc<PhotonMap>> {
-        let slot = self.maps.get(pass as usize);
-        if let Some(map) = slot.and_then(OnceLock::get) {
-            return Some(map.clone());
-        }
-        let n = u64::from(prep.settings.photons.pass_photons);
-        let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
-        // Traced photons lie on surfaces and are finite; a map that cannot be built contributes nothing.
-        let map = Arc::new(PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok()?);
-        let bytes = map.memory_bytes() as u64;
-        if let Some(slot) = slot
-            && self.used.load(Ordering::Relaxed) + bytes <= self.budget
-            && slot.set(map.clone()).is_ok()
-        {
-            self.used.fetch_add(bytes, Ordering::Relaxed);
-        }
-        Some(map)
+/// Checks that every sum of a block of `passes` passes could have come from [`render_passes`].
+pub fn check_sums(sums: &[i64], passes: u32) -> Result<(), PassSumsError> {
+    let max = MAX_PASS_SUM.saturating_mul(i64::from(passes));
+    match sums.iter().position(|&v| !(0..=max).contains(&v)) {
+        Some(index) => Err(PassSumsError::OutOfRange { index, value: sums[index], passes, max }),
+        None => Ok(()),
     }
 }
 
-/// Per-pixel state of progressive photon mapping (Hachisuka & Jensen 2009, §4; pbrt-v3's SPPM).
-#[derive(Clone, Copy)]
-struct PixelStats {
-    /// Accumulated photon count N.
-    n: f32,
-    /// Squared gather radius R².
-    r2: f32,
-    /// Accumulated, radius-scaled flux τ.
-    tau: Rgb,
-    /// Sum of directly estimated radiance (emission seen and light sampling) over passes.
-    ld: Rgb,
-}
-
-/// Stochastic progressive photon mapping over rows `rows`. Pass `k` traces its own photons from the streams
-/// `(seed, k + 2, i)` (0 and 1 belong to the static global and caustic maps) and takes camera sample `k` of each
-/// pixel, so a pixel's value depends only on the scene, the seed and the pass count, never on strips.
-/// Direct light comes from light sampling at the visible point; photons carry indirect light only
-/// (light → anything⁺ → diffuse), so each light path is counted once.
-pub(super) fn render_strip(
+/// Renders passes `passes` over rows `rows`: each pixel channel's sum over those passes of its fixed-point
+/// estimate. At most [`MAX_BLOCK_PASSES`] passes (more are cut off, as a caller that checked its input never asks
+/// for). `progress` gets the passes finished so far and returns `false` to cancel (then `None`).
+///
+/// Several passes trace their photons and build their maps side by side (as many as the threads, within
+/// a memory bound); each pass's gather then runs over the rows in parallel.
+pub fn render_passes(
     prep: &Prepared,
     rows: Range<u32>,
-    pass_maps: &PassMaps,
+    passes: Range<u32>,
     progress: &(dyn Fn(u32) -> bool + Sync),
-) -> Option<Strip> {
-    let settings = &prep.settings;
-    let ph = &settings.photons;
+) -> Option<PassSums> {
+    let passes = passes.start..passes.end.min(passes.start.saturating_add(MAX_BLOCK_PASSES));
+    let ph = &prep.settings.photons;
     let width = prep.camera.width as usize;
-    let passes = ph.passes.max(1);
-    let r0 = prep.photon_radius();
+    let mut sums = vec![0i64; 3 * width * rows.len()];
+    let (mut rays, mut photon_paths, mut photon_seconds) = (0u64, 0u64, 0.0f64);
+    let per_map = (u64::from(ph.pass_photons) * 96).max(1);
+    let group = (GROUP_MAP_BYTES / per_map).clamp(1, rayon::current_num_threads().max(1) as u64) as u32;
+    let mut done = 0u32;
+    let mut start = passes.start;
+    while start < passes.end {
+        let end = start.saturating_add(group).min(passes.end);
+        let t0 = Instant::now();
+        let maps: Vec<(Option<PhotonMap>, u64)> = (start..end).into_par_iter().map(|p| pass_map(prep, p)).collect();
+        photon_seconds += t0.elapsed().as_secs_f64();
+        for (pass, (map, paths)) in (start..end).zip(maps) {
+            photon_paths += paths;
+            rays += render_pass(prep, &rows, pass, map.as_ref(), &mut sums);
+            done += 1;
+            if !progress(done) {
+                return None;
+            }
+        }
+        start = end;
+    }
+    Some(PassSums { rows, passes, sums, rays, photon_paths, photon_seconds })
+}
+
+/// The photon map of pass `pass` and the paths traced for it. A map that cannot be built (no photon was stored)
+/// contributes nothing.
+fn pass_map(prep: &Prepared, pass: u32) -> (Option<PhotonMap>, u64) {
+    let n = u64::from(prep.settings.photons.pass_photons);
+    let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
+    let map = PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok();
+    (map, traced.paths)
+}
+
+/// Adds pass `pass`'s fixed-point estimates of rows `rows` to `sums`; returns the rays traced.
+fn render_pass(prep: &Prepared, rows: &Range<u32>, pass: u32, map: Option<&PhotonMap>, sums: &mut [i64]) -> u64 {
+    let ph = &prep.settings.photons;
+    let r2 = pass_radius2(prep.photon_radius(), ph.alpha, pass);
     let est = Estimator {
-        gather: Gather::Radius { radius: r0 },
+        gather: Gather::Radius { radius: r2.sqrt() },
         kernel: Kernel::Box,
         disc: ph.disc,
         same_object: ph.same_object,
     };
-    let mut stats = vec![PixelStats { n: 0.0, r2: r0 * r0, tau: Rgb::ZERO, ld: Rgb::ZERO }; width * rows.len()];
-    let mut rays = 0u64;
-    let rows_n = rows.len() as u64;
-    for pass in 0..passes {
-        let map = pass_maps.get(prep, pass);
-        let pass_rays: u64 = stats
-            .par_chunks_mut(width)
-            .zip(rows.clone().into_par_iter())
-            .map(|(row, y)| {
-                let mut rays = 0u64;
-                for (x, st) in row.iter_mut().enumerate() {
-                    let x = x as u32;
-                    let (ray, mut s) =
-                        camera_sample(prep, settings.seed, x, y, pass, passes, pixel_rotation(settings.seed, x, y));
-                    let vp = visible_point(prep, settings.max_depth, ray, &mut s, &mut rays);
-                    let mut ld = vp.le;
-                    let Some((beta, hit, bsdf, wo)) = vp.vertex else {
-                        st.ld += finite_or_zero(ld);
-                        continue;
-                    };
-                    ld += beta * sample_one_light(prep, &hit, &bsdf, wo, &mut s, &mut rays, false);
-                    st.ld += finite_or_zero(ld);
-                    let radius = st.r2.sqrt();
-                    let est = Estimator { gather: Gather::Radius { radius }, ..est };
-                    // The box-kernel estimate is Σ f·Φ / (π r²): undo the normalisation to get Σ f·Φ and M.
-                    let Some(map) = &map else { continue };
-                    let (phi, m) = photon_flux(map, &est, &hit, &bsdf, wo);
-                    // st.n + m > 0 as m > 0; a radius that shrank to nothing (r² ≤ 0) stops shrinking, so
-                    // the ratio r2_new / r2 below never divides by zero.
-                    if m > 0 && st.r2 > 0.0 {
-                        let m = m as f32;
-                        let n_new = st.n + ph.alpha * m;
-                        let r2_new = st.r2 * n_new / (st.n + m);
-                        if r2_new > 0.0 {
-                            st.tau = (st.tau + beta * finite_or_zero(phi)) * (r2_new / st.r2);
-                            st.n = n_new;
-                            st.r2 = r2_new;
-                        }
-                    }
+    let width = prep.camera.width as usize;
+    sums.par_chunks_mut(3 * width)
+        .zip(rows.clone().into_par_iter())
+        .map(|(row, y)| {
+            let mut rays = 0u64;
+            for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                let c = pixel_estimate(prep, map, &est, r2, (x as u32, y), pass, &mut rays);
+                for (s, v) in px.iter_mut().zip(c.to_array()) {
+                    *s = s.saturating_add(to_fixed(v));
                 }
-                rays
-            })
-            .sum();
-        rays += pass_rays;
-        if !progress(((u64::from(pass) + 1) * rows_n / u64::from(passes)) as u32) {
-            return None;
+            }
+            rays
+        })
+        .sum()
+}
+
+/// Pass `pass`'s radiance estimate at pixel `xy`: emission and light sampling at the visible point, plus the
+/// box-kernel photon estimate `β · Σ f·Φ / (π r²)` there (Knaus & Zwicker 2011, eq. 4). Non-finite parts count
+/// as zero.
+fn pixel_estimate(
+    prep: &Prepared,
+    map: Option<&PhotonMap>,
+    est: &Estimator,
+    r2: f32,
+    (x, y): (u32, u32),
+    pass: u32,
+    rays: &mut u64,
+) -> Rgb {
+    let settings = &prep.settings;
+    let (seed, passes) = (settings.seed, settings.photons.passes.max(1));
+    let (ray, mut s) = camera_sample(prep, seed, x, y, pass, passes, pixel_rotation(seed, x, y));
+    let vp = visible_point(prep, settings.max_depth, ray, &mut s, rays);
+    let Some((beta, hit, bsdf, wo)) = vp.vertex else { return finite_or_zero(vp.le) };
+    let ld = vp.le + beta * sample_one_light(prep, &hit, &bsdf, wo, &mut s, rays, false);
+    let Some(map) = map else { return finite_or_zero(ld) };
+    let (phi, m) = photon_flux(map, est, &hit, &bsdf, wo);
+    let area = std::f32::consts::PI * r2;
+    let indirect = if m > 0 && area > 0.0 { beta * phi / area } else { Rgb::ZERO };
+    finite_or_zero(ld) + finite_or_zero(indirect)
+}
+
+/// The fixed-point sums of a whole render, added block by block in any order; gives the image, the mean over
+/// all passes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PassAccumulator {
+    passes: u32,
+    sums: Vec<i128>,
+}
+
+impl PassAccumulator {
+    /// An accumulator of `len` values (3 per pixel) for a render of `passes` passes in all.
+    pub fn new(len: usize, passes: u32) -> Self {
+        Self { passes: passes.max(1), sums: vec![0; len] }
+    }
+
+    /// Adds a block's sums (as many as [`PassAccumulator::new`] was given; extra values are ignored).
+    pub fn add(&mut self, sums: &[i64]) {
+        for (s, &v) in self.sums.iter_mut().zip(sums) {
+            *s += i128::from(v);
         }
     }
-    let inv_passes = 1.0 / passes as f32;
-    let pixels = stats
-        .iter()
-        .flat_map(|st| {
-            // τ is only ever scaled when r² > 0; a pixel whose radius is zero gathered nothing.
-            let area = passes as f32 * std::f32::consts::PI * st.r2;
-            let indirect = if area > 0.0 { st.tau / area } else { Rgb::ZERO };
-            let c = st.ld * inv_passes + finite_or_zero(indirect);
-            debug_assert!(c.is_finite(), "progressive: non-finite pixel {c:?} (r² = {}, τ = {:?})", st.r2, st.tau);
-            c.to_array()
-        })
-        .collect();
-    Some(Strip { rows, pixels, rays })
+
+    /// The sums so far (for a partial file).
+    pub fn sums(&self) -> &[i128] {
+        &self.sums
+    }
+
+    /// Restores sums saved by [`PassAccumulator::sums`]; `false` (and no change) when the length differs.
+    pub fn restore(&mut self, sums: &[i128]) -> bool {
+        if sums.len() != self.sums.len() {
+            return false;
+        }
+        self.sums.copy_from_slice(sums);
+        true
+    }
+
+    /// The image: linear RGB radiance, each value the sum divided by `2²⁴ × passes`.
+    pub fn image(&self) -> Vec<f32> {
+        let scale = f64::from(1u32 << SUM_FRACTION_BITS) * f64::from(self.passes);
+        self.sums.iter().map(|&s| (s as f64 / scale) as f32).collect()
+    }
+}
+
+/// Every pass over rows `rows`, in blocks of at most [`MAX_BLOCK_PASSES`]: the same pixels as a farm render,
+/// whatever its blocks. `progress` gets rows-equivalent done so far (`rows.len()` at the end).
+pub(super) fn render_strip(
+    prep: &Prepared,
+    rows: Range<u32>,
+    progress: &(dyn Fn(u32) -> bool + Sync),
+) -> Option<Strip> {
+    let total = prep.settings.photons.passes.max(1);
+    let width = prep.camera.width as usize;
+    let mut acc = PassAccumulator::new(3 * width * rows.len(), total);
+    let (mut rays, mut photon_paths) = (0, 0);
+    let rows_n = rows.len() as u64;
+    let mut start = 0;
+    while start < total {
+        let end = start.saturating_add(MAX_BLOCK_PASSES).min(total);
+        let block_progress = |n: u32| progress(((u64::from(start + n)) * rows_n / u64::from(total)) as u32);
+        let block = render_passes(prep, rows.clone(), start..end, &block_progress)?;
+        rays += block.rays;
+        photon_paths += block.photon_paths;
+        acc.add(&block.sums);
+        start = end;
+    }
+    Some(Strip { rows, pixels: acc.image(), rays, photon_paths })
 }
 
 fn finite_or_zero(c: Rgb) -> Rgb {
     if c.is_finite() { c } else { Rgb::ZERO }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_radius_sequence_follows_its_recurrence() {
+        let (r0, alpha) = (0.1f32, 2.0 / 3.0);
+        assert_eq!(pass_radius2(r0, alpha, 0), r0 * r0);
+        for i in 1..200u32 {
+            let expected =
+                f64::from(pass_radius2(r0, alpha, i - 1)) * (f64::from(i) + f64::from(alpha)) / (f64::from(i) + 1.0);
+            assert!((f64::from(pass_radius2(r0, alpha, i)) - expected).abs() <= 1e-6 * expected);
+        }
+        // r_i² ~ i^(α−1): the ratio of radii 1000 passes apart follows the power law within a percent.
+        let ratio = f64::from(pass_radius2(r0, alpha, 1999) / pass_radius2(r0, alpha, 999));
+        assert!((ratio / 2f64.powf(f64::from(alpha) - 1.0) - 1.0).abs() < 0.01, "{ratio}");
+    }
+
+    #[test]
+    fn fixed_point_keeps_radiance_to_its_quantum_and_refuses_nothing_finite() {
+        let quantum = 1.0 / f64::from(1u32 << SUM_FRACTION_BITS);
+        for v in [0.0f32, 1e-9, 0.3, 1.0, 123.456, 1e6] {
+            let back = to_fixed(v) as f64 * quantum;
+            assert!((back - f64::from(v)).abs() <= 0.5 * quantum + f64::from(v) * 1e-15, "{v}: {back}");
+        }
+        assert_eq!(to_fixed(f32::NAN), 0);
+        assert_eq!(to_fixed(f32::INFINITY), 0);
+        assert_eq!(to_fixed(-1.0), 0);
+        assert_eq!(to_fixed(1e30), MAX_PASS_SUM);
+        // A full block at the clamp fits i64.
+        assert!(MAX_PASS_SUM.checked_mul(i64::from(MAX_BLOCK_PASSES)).is_some());
+    }
+
+    #[test]
+    fn sums_are_checked_against_the_block_length() {
+        assert_eq!(check_sums(&[0, 5, MAX_PASS_SUM * 2], 2), Ok(()));
+        assert!(matches!(check_sums(&[0, -1], 2), Err(PassSumsError::OutOfRange { index: 1, .. })));
+        assert!(matches!(check_sums(&[MAX_PASS_SUM * 2 + 1], 2), Err(PassSumsError::OutOfRange { index: 0, .. })));
+    }
+
+    #[test]
+    fn the_accumulator_is_exact_whatever_the_order_of_blocks() {
+        let blocks: Vec<Vec<i64>> = (0..7)
+            .map(|i| vec![to_fixed(0.1 * i as f32 + 1e-7), to_fixed(3.3 / (i + 1) as f32), i64::MAX / 8])
+            .collect();
+        let mut in_order = PassAccumulator::new(3, 7);
+        for b in &blocks {
+            in_order.add(b);
+        }
+        let mut shuffled = PassAccumulator::new(3, 7);
+        for i in [3, 1, 6, 4, 0, 5, 2] {
+            shuffled.add(&blocks[i]);
+        }
+        assert_eq!(in_order, shuffled);
+        assert_eq!(in_order.image(), shuffled.image());
+        let mean = (0..7).map(|i| 0.1 * f64::from(i) + 1e-7).sum::<f64>() / 7.0;
+        assert!((f64::from(in_order.image()[0]) - mean).abs() < 1e-6);
+    }
 }

@@ -1,0 +1,70 @@
+//! Progressive photon mapping's passes are independent units: blocks of passes rendered in any cut and added in
+//! any order give the image of the whole render, bit for bit, and each pass traces `pass_photons` paths once.
+
+#![allow(clippy::unwrap_used)]
+
+use photon_core::prepare::Prepared;
+use photon_core::render::progressive::{PassAccumulator, check_sums, render_passes};
+use photon_core::render::render_image;
+use photon_core::scene::{Integrator, Scene};
+use std::ops::Range;
+use std::path::Path;
+
+fn cornell(passes: u32) -> Prepared {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+    let mut scene = Scene::load(&path).unwrap();
+    scene.camera.width = 20;
+    scene.camera.height = 16;
+    scene.render.integrator = Integrator::Progressive;
+    scene.render.photons.passes = passes;
+    scene.render.photons.pass_photons = 3_000;
+    Prepared::new(&scene, &path).unwrap()
+}
+
+fn bits(v: &[f32]) -> Vec<u32> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+#[test]
+fn any_cut_into_blocks_in_any_order_gives_the_same_image() {
+    let passes = 7;
+    let prep = cornell(passes);
+    let (w, h) = (prep.camera.width, prep.camera.height);
+    let whole = render_image(&prep, &|_| {});
+    assert_eq!(whole.photon_paths, u64::from(passes) * 3_000);
+    assert!(whole.pixels.iter().any(|&v| v > 0.0));
+    let cuts: [&[Range<u32>]; 3] = [&[0..4, 4..7], &[0..1, 1..4, 4..7], &[5..7, 0..2, 3..5, 2..3]];
+    for cut in cuts {
+        let mut acc = PassAccumulator::new(3 * (w * h) as usize, passes);
+        let mut paths = 0;
+        for block in cut {
+            let sums = render_passes(&prep, 0..h, block.clone(), &|_| true).unwrap();
+            check_sums(&sums.sums, block.len() as u32).unwrap();
+            paths += sums.photon_paths;
+            acc.add(&sums.sums);
+        }
+        assert_eq!(bits(&acc.image()), bits(&whole.pixels), "blocks {cut:?}");
+        assert_eq!(paths, whole.photon_paths, "blocks {cut:?}");
+    }
+}
+
+#[test]
+fn a_block_over_some_rows_gives_those_rows_of_the_whole_block() {
+    let prep = cornell(3);
+    let (w, h) = (prep.camera.width as usize, prep.camera.height);
+    let all = render_passes(&prep, 0..h, 0..3, &|_| true).unwrap();
+    let part = render_passes(&prep, 5..9, 0..3, &|_| true).unwrap();
+    assert_eq!(part.sums[..], all.sums[3 * w * 5..3 * w * 9]);
+}
+
+#[test]
+fn a_cancelled_block_stops_after_the_pass_that_asked() {
+    let prep = cornell(5);
+    let calls = std::sync::atomic::AtomicU32::new(0);
+    let out = render_passes(&prep, 0..prep.camera.height, 0..5, &|_| {
+        calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        false
+    });
+    assert!(out.is_none());
+    assert_eq!(calls.load(std::sync::atomic::Ordering::Relaxed), 1);
+}
