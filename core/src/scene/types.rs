@@ -60,8 +60,9 @@ pub enum Integrator {
     /// Jensen's two passes: direct light by shadow rays, caustics from the caustic map, indirect light from
     /// the global map through final gathering.
     FinalGather,
-    /// Stochastic progressive photon mapping (Hachisuka & Jensen 2009): passes of fresh photons with a
-    /// shrinking per-pixel radius; consistent, it converges to the path tracer's answer.
+    /// Probabilistic progressive photon mapping (Knaus & Zwicker 2011): independent passes of fresh photons,
+    /// each gathering with a radius that shrinks with the pass index; consistent, it converges to the path
+    /// tracer's answer, and its passes spread over the farm.
     Progressive,
 }
 
