@@ -11,6 +11,10 @@
 //! cores); time (median of 3), speed-up over one worker, parallel efficiency, and every image checked bit for
 //! bit against the in-process one.
 //!
+//! `-- --model` runs the discrete-event model of the origin's lab ([`photon_coordinator::model`]): per-row and
+//! per-pass costs measured here on one thread for a 1920×1080 Cornell box, jobs sized to about 10 minutes on the
+//! lab, with and without two machines dying (docs/RESULTS.md, "The modelled lab").
+//!
 //! `cargo build --release -p photon-worker && cargo run --release -p photon-coordinator --example farm_bench`
 //! (the worker binary is needed for the loopback processes). `-- --quick` runs fewer, smaller cases.
 
@@ -19,7 +23,8 @@
 use photon_coordinator::farm::{self, Options};
 use photon_coordinator::fleet::{InProcess, LocalWorkers};
 use photon_coordinator::job::Job;
-use photon_coordinator::scheduler::{Scheduler, WorkerId};
+use photon_coordinator::model::{Network, SimJob, SimWorker, simulate};
+use photon_coordinator::scheduler::{Policy, Scheduler, WorkerId};
 use photon_coordinator::session;
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Integrator, Scene};
@@ -58,6 +63,10 @@ fn main() {
     let cores = rayon::current_num_threads();
     let rt = tokio::runtime::Builder::new_multi_thread().worker_threads(2).enable_all().build().expect("runtime");
     println!("farm_bench: {cores} threads, {}", if quick { "quick" } else { "full" });
+    if args.iter().any(|a| a == "--model") {
+        model();
+        return;
+    }
     if args.iter().any(|a| a == "--scaling") {
         let max = args
             .iter()
@@ -271,6 +280,124 @@ fn scaling(rt: &tokio::runtime::Runtime, quick: bool, cores: usize, max: usize) 
                 "| {integrator} | {n} worker{} | {t:.3} | {speedup:.2} | {:.0} % |",
                 if n == 1 { "" } else { "s" },
                 100.0 * speedup / n as f64
+            );
+        }
+    }
+}
+
+/// The origin's lab: 20 six-core and 30 four-core x86-64 machines, one 32-core and one 96-core ARM machine
+/// (368 cores). Core speeds relative to this machine's core are assumptions, stated in RESULTS.
+fn lab() -> Vec<SimWorker> {
+    let mut ws = Vec::new();
+    ws.extend((0..20).map(|_| SimWorker { cores: 6, core_speed: 1.0, dies_at: None }));
+    ws.extend((0..30).map(|_| SimWorker { cores: 4, core_speed: 0.8, dies_at: None }));
+    ws.push(SimWorker { cores: 32, core_speed: 1.0, dies_at: None });
+    ws.push(SimWorker { cores: 96, core_speed: 0.6, dies_at: None });
+    ws
+}
+
+/// Seconds of `f` on one thread.
+fn one_thread<R: Send>(f: impl FnOnce() -> R + Send) -> (f64, R) {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("one-thread pool");
+    let t = Instant::now();
+    let r = pool.install(f);
+    (t.elapsed().as_secs_f64(), r)
+}
+
+/// The lab model: costs measured here, jobs of about 10 minutes on the lab, each method with and without deaths.
+fn model() {
+    let (width, height) = (1920u32, 1080u32);
+    let lab = lab();
+    let lab_speed: f64 = lab.iter().map(|w| f64::from(w.cores) * w.core_speed).sum();
+    let target_s = 600.0;
+    let net = Network::gigabit();
+    println!(
+        "\n## The modelled lab: {} machines, {} cores, 1 Gbit/s links; Cornell {width}x{height}",
+        lab.len(),
+        lab.iter().map(|w| w.cores).sum::<u32>()
+    );
+    println!(
+        "| method | job | units | per unit | strips | makespan s | ideal s | efficiency | prepare s | ship s | tail s | speculative | with 2 deaths: makespan s, efficiency |"
+    );
+    println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
+    let methods: [(Integrator, u32); 4] = [
+        (Integrator::Path, 0),
+        (Integrator::PhotonMap, 1_000_000),
+        (Integrator::FinalGather, 200_000),
+        (Integrator::Progressive, 100_000),
+    ];
+    for (integrator, photons) in methods {
+        let (mut scene, path) = cornell(width, 1, integrator, photons);
+        scene.camera.height = height;
+        scene.render.photons.pass_photons = photons.max(1);
+        scene.render.photons.passes = 2;
+        let t = Instant::now();
+        let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
+        let prepare_s = t.elapsed().as_secs_f64();
+        let job = job_of(&prep);
+        let photons_blob = job.photons_blob.as_ref().and_then(|id| job.blobs.get(id)).map(|b| b.as_slice());
+        let (load_core_s, _) = one_thread(|| {
+            Prepared::from_blobs(&job.blobs[&job.scene_blob], photons_blob, &job.frame, usize::MAX).expect("decode")
+        });
+        let rows = 8u32;
+        let (units, core_s_per_unit, fixed, per_unit, label) = if integrator == Integrator::Progressive {
+            // Two passes over 8 rows: the photon part is per pass, the gather part per row.
+            let (t, block) = one_thread(|| {
+                photon_core::render::progressive::render_passes(&prep, 0..rows, 0..2, &|_| true).expect("passes")
+            });
+            let photon_part = block.photon_seconds / 2.0;
+            let per_pass = photon_part + (t - block.photon_seconds) / 2.0 / f64::from(rows) * f64::from(height);
+            let passes = (target_s * lab_speed / per_pass).round() as u32;
+            let label = format!("{passes} passes of {photons} paths");
+            (passes, per_pass, 24.0 * f64::from(width) * f64::from(height), 0.0, label)
+        } else {
+            let (t, _) = one_thread(|| photon_core::render::render_strip(&prep, 0..rows, &|_| {}));
+            let per_row_spp = t / f64::from(rows);
+            let spp = (target_s * lab_speed / (per_row_spp * f64::from(height))).round().max(1.0);
+            (height, per_row_spp * spp, 0.0, 12.0 * f64::from(width), format!("{spp} spp"))
+        };
+        let cuts: Vec<u32> = if integrator == Integrator::Progressive {
+            let default = photon_coordinator::scheduler::passes_per_block_for(units, lab.len() as u32);
+            // The default, and finer cuts for comparison (more blocks: a shorter tail, more bytes to send back).
+            vec![
+                default,
+                units.div_ceil(lab.len() as u32 * 8),
+                units.div_ceil(lab.len() as u32 * 16),
+                units.div_ceil(lab.len() as u32 * 32),
+            ]
+        } else {
+            vec![photon_coordinator::scheduler::rows_per_strip_for(height, lab.len() as u32)]
+        };
+        for per_strip in cuts {
+            let sim = SimJob {
+                units,
+                units_per_strip: per_strip,
+                core_s_per_unit,
+                result_bytes_fixed: fixed,
+                result_bytes_per_unit: per_unit,
+                blob_bytes: job.blob_bytes() as f64,
+                prepare_s,
+                load_core_s,
+                thread_efficiency: 1.0,
+            };
+            let r = simulate(&sim, &lab, &net, Policy::default());
+            let mut dying = lab.clone();
+            dying[0].dies_at = Some(0.3 * r.makespan_s);
+            dying[51].dies_at = Some(0.5 * r.makespan_s);
+            let d = simulate(&sim, &dying, &net, Policy::default());
+            assert!(r.complete && d.complete, "{integrator}: the model did not finish");
+            println!(
+                "| {integrator} | {label} | {units} | {core_s_per_unit:.3} core-s | {} | {:.1} | {:.1} | {:.1} % | {:.2} | {:.2} | {:.1} | {} | {:.1}, {:.1} % |",
+                units.div_ceil(per_strip),
+                r.makespan_s,
+                r.ideal_s,
+                100.0 * r.efficiency,
+                r.prepare_s,
+                r.ship_s,
+                r.tail_s,
+                r.speculative,
+                d.makespan_s,
+                100.0 * d.efficiency
             );
         }
     }

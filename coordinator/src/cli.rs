@@ -73,7 +73,7 @@ pub(crate) struct RenderArgs {
     #[arg(long, value_name = "FILE")]
     pub(crate) resume: Option<PathBuf>,
     /// Rows per strip (default: about 16 strips per worker, at most 64 rows); for progressive photon mapping,
-    /// passes per whole-image block (default: about 4 blocks per worker).
+    /// passes per whole-image block (default: about 16 blocks per worker).
     #[arg(long, value_name = "N")]
     pub(crate) rows_per_strip: Option<u32>,
     /// Folder of prepared blobs reused by later renders of an unchanged scene (default: $PHOTON_CACHE_DIR, else

@@ -242,9 +242,8 @@ pub fn simulate(job: &SimJob, workers: &[SimWorker], net: &Network, policy: Poli
     let ideal_s = f64::from(job.units) * job.core_s_per_unit / speed.max(f64::MIN_POSITIVE);
     let speculative = sim.sched.workers().map(|(_, s)| s.speculative).sum();
     let complete = sim.sched.is_done();
-    let strips = (0..workers.len())
-        .map(|i| sim.sched.worker_stats(WorkerId(i as u32)).map_or(0, |s| s.strips))
-        .collect();
+    let strips =
+        (0..workers.len()).map(|i| sim.sched.worker_stats(WorkerId(i as u32)).map_or(0, |s| s.strips)).collect();
     SimReport {
         makespan_s: end,
         ideal_s,
