@@ -7,6 +7,11 @@
 //! photon is stored; the BSDF is sampled in importance (flux) mode and Russian roulette on the sampled weight
 //! `w = f·|cos θ|/pdf` keeps the path with probability `q = min(1, max(w))`, dividing its power by `q`: a
 //! photon's power never grows where `w ≤ 1` (every material here but the Phong lobe near grazing angles).
+//!
+//! Shading normals (Veach 1997, §5.3): a photon scatters with the adjoint BSDF, its weight multiplied by
+//! `|wo·ns|·|wi·ng| / (|wo·ng|·|wi·ns|)` ([`crate::material::bsdf::Bsdf::adjoint_correction`]), and a stored
+//! photon's flux by `|wo·ns| / |wo·ng|` ([`crate::material::bsdf::Bsdf::arrival_correction`]); both are 1 where
+//! the shading normal is the geometric one. Progressive photon mapping traces its passes here too.
 //! Photon `i` of pass `p` draws from the stream `(seed, p, i)`; paths are traced in parallel in fixed chunks and
 //! concatenated in order, so the maps are bit-identical whatever the thread count.
 
@@ -149,9 +154,11 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
                 PhotonKind::Indirect => depth > 0,
             };
             if keep {
-                // Store the normal on the side the photon arrived from.
+                // Store the normal on the side the photon arrived from, and the flux as the shading normal
+                // sees it (`Bsdf::arrival_correction`), so that density estimates match the path tracer on
+                // smooth-shaded surfaces.
                 let n = hit.normal_towards(wo);
-                out.push(Photon::new(hit.p, wo, n, power, hit.object));
+                out.push(Photon::new(hit.p, wo, n, power * bsdf.arrival_correction(wo), hit.object));
             }
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
@@ -159,7 +166,8 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
         if bs.pdf.is_nan() || bs.pdf <= 0.0 {
             return;
         }
-        let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        // Photons carry flux: the adjoint of the shading-normal BSDF (Veach 1997, eq. 5.17).
+        let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf * bsdf.adjoint_correction(wo, bs.wi));
         let q = w.max_element().min(1.0);
         if q.is_nan() || q <= 0.0 || s.next_f32() >= q {
             return;
