@@ -142,15 +142,22 @@ impl Sphere {
         let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         // A hit has |v| ≈ r > 0; the guard keeps a degenerate ray from dividing by zero.
         let unit = if len > 0.0 { v.map(|x| x / len) } else { [0.0, 1.0, 0.0] };
+        let (p, p_error, n) = self.point_at(unit);
+        let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
+        let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
+        LocalHit { p, p_error, n, uv: Vec2::new(u, v) }
+    }
+
+    /// The point `c + unit·r` of the sphere for an f64 unit vector, rounded once to f32, with its error bound
+    /// and the normal.
+    fn point_at(&self, unit: [f64; 3]) -> (Vec3A, Vec3A, Vec3A) {
+        let c = self.center.to_array().map(f64::from);
         let r = f64::from(self.radius);
         let p = Vec3A::new((c[0] + unit[0] * r) as f32, (c[1] + unit[1] * r) as f32, (c[2] + unit[2] * r) as f32);
         let n = Vec3A::new(unit[0] as f32, unit[1] as f32, unit[2] as f32);
         // 2⁻⁵⁰ covers the f64 rounding of the unit vector (relative) and of c + unit·r, with room to spare.
         let f64_error = (Vec3A::from(self.center).abs() + Vec3A::splat(self.radius)) * (1.0 / 1_125_899_906_842_624.0);
-        let p_error = gamma(1) * p.abs() + f64_error;
-        let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
-        let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
-        LocalHit { p, p_error, n, uv: Vec2::new(u, v) }
+        (p, gamma(1) * p.abs() + f64_error, n)
     }
 }
 
@@ -204,12 +211,17 @@ impl Rect {
         let d = offset_from(ray, t, c);
         let a = d.dot(u) / u.length_squared();
         let b = d.dot(v) / v.length_squared();
-        // The point of the rectangle at (a, b): on its plane up to the rounding of two products and two sums,
-        // however far the ray came from (the error of `a` and `b` only slides it within the plane).
-        let (au, bv) = (a * u, b * v);
-        let p = c + au + bv;
-        let p_error = gamma(3) * (c.abs() + au.abs() + bv.abs());
+        // The error of `a` and `b` only slides the point within the plane.
+        let (p, p_error) = self.point_at(a, b);
         LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(a, b) }
+    }
+
+    /// The point `corner + a·u + b·v` and its error bound: on the plane up to the rounding of two products and
+    /// two sums.
+    fn point_at(&self, a: f32, b: f32) -> (Vec3A, Vec3A) {
+        let c = Vec3A::from(self.corner);
+        let (au, bv) = (a * Vec3A::from(self.u), b * Vec3A::from(self.v));
+        (c + au + bv, gamma(3) * (c.abs() + au.abs() + bv.abs()))
     }
 }
 
@@ -370,15 +382,19 @@ impl Triangle {
             },
             |h| (h.1, h.2),
         );
+        let (p, p_error) = self.point_at(b1, b2);
+        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(b1, b2) }
+    }
+
+    /// The point at barycentrics `(b1, b2)` and its error bound.
+    fn point_at(&self, b1: f32, b2: f32) -> (Vec3A, Vec3A) {
         let b0 = 1.0 - b1 - b2;
         let [t0, t1, t2] = [b0 * Vec3A::from(self.p[0]), b1 * Vec3A::from(self.p[1]), b2 * Vec3A::from(self.p[2])];
-        let p = t0 + t1 + t2;
         // The interpolation rounds three products and two sums (pbrt-v4's γ(7)·Σ|bi·pi| covers them and the
         // barycentrics' own error); b0 = 1 − b1 − b2 in f32 makes the weights sum to 1 only within γ(2)·3, which
         // moves the point by that fraction of its distance from the origin: γ(6)·max|pi|.
         let max_p = Vec3A::from(self.p[0].abs().max(self.p[1].abs()).max(self.p[2].abs()));
-        let p_error = gamma(7) * (t0.abs() + t1.abs() + t2.abs()) + gamma(6) * max_p;
-        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(b1, b2) }
+        (t0 + t1 + t2, gamma(7) * (t0.abs() + t1.abs() + t2.abs()) + gamma(6) * max_p)
     }
 
     /// Barycentrics `(b1, b2)` of a point in the triangle's plane.
@@ -468,16 +484,27 @@ impl Shape {
 
     /// A point uniformly distributed by area and its geometric normal.
     pub fn sample_area(&self, u: Vec2) -> (Vec3A, Vec3A) {
+        let (p, _, n) = self.sample_area_with_error(u);
+        (p, n)
+    }
+
+    /// A point uniformly distributed by area, the bound on its error (as [`LocalHit::p_error`]) and its
+    /// geometric normal: what a ray leaving the point is offset by.
+    pub fn sample_area_with_error(&self, u: Vec2) -> (Vec3A, Vec3A, Vec3A) {
         match self {
             Shape::Sphere(s) => {
-                let n = crate::math::uniform_sphere(u);
-                (Vec3A::from(s.center) + n * s.radius, n)
+                let d = crate::math::uniform_sphere(u).to_array().map(f64::from);
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                s.point_at(d.map(|x| x / len))
             }
-            Shape::Rect(r) => (Vec3A::from(r.corner) + u.x * Vec3A::from(r.u) + u.y * Vec3A::from(r.v), r.normal()),
+            Shape::Rect(r) => {
+                let (p, e) = r.point_at(u.x, u.y);
+                (p, e, r.normal())
+            }
             Shape::Triangle(t) => {
                 let (b1, b2) = crate::math::uniform_triangle(u);
-                let p = (1.0 - b1 - b2) * Vec3A::from(t.p[0]) + b1 * Vec3A::from(t.p[1]) + b2 * Vec3A::from(t.p[2]);
-                (p, t.normal())
+                let (p, e) = t.point_at(b1, b2);
+                (p, e, t.normal())
             }
         }
     }

@@ -21,7 +21,7 @@ use crate::light::Light;
 use crate::material::Material;
 use crate::material::bsdf::TransportMode;
 use crate::math::rng::Sampler;
-use crate::math::{Frame, Ray, cosine_hemisphere, uniform_sphere};
+use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
 use crate::scene::{Integrator, SceneError};
 use rayon::prelude::*;
@@ -130,14 +130,10 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
         Light::Point { p, .. } => Ray::new(p, uniform_sphere(u)),
         Light::Area { prim, two_sided, .. } => {
             let Some(pr) = prep.geometry.prims.get(prim as usize) else { return };
-            let (p, n) = pr.shape.sample_area(u);
-            let mut d = cosine_hemisphere(u2);
-            let mut n = n;
-            if two_sided && s.next_f32() < 0.5 {
-                n = -n;
-            }
-            d = Frame::from_normal(n).to_world(d);
-            Ray::new(crate::math::offset_ray_origin(p, n), d)
+            let (p, p_error, n) = pr.shape.sample_area_with_error(u);
+            let n = if two_sided && s.next_f32() < 0.5 { -n } else { n };
+            let d = Frame::from_normal(n).to_world(cosine_hemisphere(u2));
+            Ray::new(offset_ray_origin_by_error(p, p_error, n, d), d)
         }
     };
     let mut power = phi;
