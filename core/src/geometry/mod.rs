@@ -8,7 +8,7 @@ pub mod bvh;
 pub mod mesh;
 pub mod shapes;
 
-use crate::math::{Aabb, Ray, offset_ray_origin};
+use crate::math::{Aabb, Ray, offset_ray_origin_by_error};
 use bvh::Bvh;
 use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};
@@ -71,6 +71,8 @@ pub struct Hit {
     pub t: f32,
     /// Point on the surface.
     pub p: Vec3A,
+    /// A bound on the rounding error of each coordinate of `p` (absolute): how far the true surface point may be.
+    pub p_error: Vec3A,
     /// Geometric unit normal as the shape defines it.
     pub n: Vec3A,
     /// Shading unit normal (interpolated on meshes), on the same side as `n`.
@@ -95,11 +97,12 @@ impl Hit {
     }
 
     /// A ray leaving the hit point in direction `wi`, its origin offset along the geometric normal to the side
-    /// `wi` goes to, so that it does not hit this surface again.
+    /// `wi` goes to by the error bound of `p` (pbrt-v4 §6.8.6), so that it does not hit this surface again: no
+    /// fixed epsilon, so it works for a sphere of radius 10⁻³ as for a floor of radius 10⁶ or a scene 10⁵ units
+    /// from the origin.
     #[inline]
     pub fn spawn_ray(&self, wi: Vec3A) -> Ray {
-        let n = if wi.dot(self.n) > 0.0 { self.n } else { -self.n };
-        Ray::new(offset_ray_origin(self.p, n), wi)
+        Ray::new(offset_ray_origin_by_error(self.p, self.p_error, self.n, wi), wi)
     }
 }
 
@@ -161,19 +164,19 @@ impl Geometry {
         match prim {
             PrimRef::Plane(i) => {
                 let pl = &self.planes[i as usize];
-                let LocalHit { p, n, uv } = pl.plane.local_hit(ray.at(t));
-                Hit { t, p, n, ns: n, uv, material: pl.material, light: NONE, object: pl.object, prim }
+                let LocalHit { p, p_error, n, uv } = pl.plane.local_hit(ray, t);
+                Hit { t, p, p_error, n, ns: n, uv, material: pl.material, light: NONE, object: pl.object, prim }
             }
             PrimRef::Bounded(i) => {
                 let pr = &self.prims[i as usize];
-                let LocalHit { p, n, uv } = pr.shape.local_hit(ray, t);
+                let LocalHit { p, p_error, n, uv } = pr.shape.local_hit(ray, t);
                 let (n, ns, uv) = match pr.shape {
                     crate::geometry::shapes::Shape::Triangle(tri) if tri.mesh != crate::geometry::shapes::NO_MESH => {
                         self.mesh_shading(tri.mesh, tri.face, uv, n)
                     }
                     _ => (n, n, uv),
                 };
-                Hit { t, p, n, ns, uv, material: pr.material, light: pr.light, object: pr.object, prim }
+                Hit { t, p, p_error, n, ns, uv, material: pr.material, light: pr.light, object: pr.object, prim }
             }
         }
     }

@@ -9,10 +9,12 @@
 //! ```
 //! Spheres, rectangles (parallelograms) and triangles are bounded and live in the BVH; infinite planes are
 //! tested separately (see [`crate::geometry`]). Each shape answers the distance of the closest hit (`intersect`)
-//! and, for that hit only, the surface data (`surface`).
+//! and, for that hit only, the surface data (`local_hit`): the point, with a bound on its rounding error, which
+//! is what a ray leaving it is offset by (pbrt-v4 §6.8). No shape is hit by a ray whose origin lies within the
+//! rounding error of its surface, so a ray offset by that bound never finds the surface it leaves.
 
 use crate::math::fmath;
-use crate::math::{Aabb, Ray};
+use crate::math::{Aabb, Ray, gamma};
 use glam::{Vec2, Vec3, Vec3A, Vec3Swizzles};
 use serde::{Deserialize, Serialize};
 
@@ -76,6 +78,8 @@ pub enum Shape {
 pub struct LocalHit {
     /// The point, refined to lie on the surface.
     pub p: Vec3A,
+    /// A bound on the distance of each coordinate of `p` from the true surface point (absolute, per axis).
+    pub p_error: Vec3A,
     /// Geometric unit normal, as defined by the shape (not flipped towards the ray).
     pub n: Vec3A,
     /// Surface parameters: `(u, v)` on rectangles and spheres, barycentrics `(b1, b2)` on triangles.
@@ -126,9 +130,9 @@ impl Sphere {
     }
 
     /// The hit of `ray` at distance `t`, projected onto the sphere in f64 so that its f32 coordinates are the
-    /// surface point rounded once: within half an ulp of each coordinate of the true surface, which is the
-    /// error [`crate::math::offset_ray_origin`] offsets by. (Projecting as `c + n·r` in f32 instead puts the
-    /// point up to an ulp of |c| + r off the surface: 0.06 for a floor of radius 10⁶, far beyond the offset.)
+    /// surface point rounded once: within half an ulp of each coordinate of the true surface (`p_error`: that
+    /// half ulp, γ(1)·|p|, plus the f64 rounding of `c + n·r`, a few 2⁻⁵³ of |c| + r). Projecting as `c + n·r`
+    /// in f32 instead puts the point up to an ulp of |c| + r off the surface: 0.06 for a floor of radius 10⁶.
     fn local_hit(&self, ray: &Ray, t: f32) -> LocalHit {
         let o = ray.o.to_array().map(f64::from);
         let d = ray.d.to_array().map(f64::from);
@@ -138,12 +142,22 @@ impl Sphere {
         let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
         // A hit has |v| ≈ r > 0; the guard keeps a degenerate ray from dividing by zero.
         let unit = if len > 0.0 { v.map(|x| x / len) } else { [0.0, 1.0, 0.0] };
+        let (p, p_error, n) = self.point_at(unit);
+        let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
+        let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
+        LocalHit { p, p_error, n, uv: Vec2::new(u, v) }
+    }
+
+    /// The point `c + unit·r` of the sphere for an f64 unit vector, rounded once to f32, with its error bound
+    /// and the normal.
+    fn point_at(&self, unit: [f64; 3]) -> (Vec3A, Vec3A, Vec3A) {
+        let c = self.center.to_array().map(f64::from);
         let r = f64::from(self.radius);
         let p = Vec3A::new((c[0] + unit[0] * r) as f32, (c[1] + unit[1] * r) as f32, (c[2] + unit[2] * r) as f32);
         let n = Vec3A::new(unit[0] as f32, unit[1] as f32, unit[2] as f32);
-        let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
-        let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
-        LocalHit { p, n, uv: Vec2::new(u, v) }
+        // 2⁻⁵⁰ covers the f64 rounding of the unit vector (relative) and of c + unit·r, with room to spare.
+        let f64_error = (Vec3A::from(self.center).abs() + Vec3A::splat(self.radius)) * (1.0 / 1_125_899_906_842_624.0);
+        (p, gamma(1) * p.abs() + f64_error, n)
     }
 }
 
@@ -170,45 +184,76 @@ impl Rect {
         self.u.cross(self.v).length()
     }
 
-    /// Distance along `ray` to the hit in `(0, tmax)`.
+    /// Distance along `ray` to the hit in `(0, tmax)`. A ray whose origin lies within the rounding error of the
+    /// rectangle's plane does not hit it (see [`plane_distance`]).
     #[inline]
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
         let u = Vec3A::from(self.u);
         let v = Vec3A::from(self.v);
         let nn = fmath::cross(u, v);
-        let denom = nn.dot(ray.d);
-        if denom == 0.0 {
+        // Bounds |nn| per axis whatever the cancellation in the cross product: |u|×|v| with plus signs.
+        let (au, av) = (u.abs(), v.abs());
+        let nn_abs = au.yzx() * av.zxy() + au.zxy() * av.yzx();
+        let t = plane_distance(ray, Vec3A::from(self.corner), nn, nn_abs)?;
+        if t >= tmax {
             return None;
         }
-        let t = nn.dot(Vec3A::from(self.corner) - ray.o) / denom;
-        if !(t > 0.0 && t < tmax) {
-            return None;
-        }
-        let d = ray.o + t * ray.d - Vec3A::from(self.corner);
+        let d = offset_from(ray, t, Vec3A::from(self.corner));
         let a = d.dot(u) / u.length_squared();
         let b = d.dot(v) / v.length_squared();
         ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
     }
 
-    fn local_hit(&self, p: Vec3A) -> LocalHit {
+    fn local_hit(&self, ray: &Ray, t: f32) -> LocalHit {
         let u = Vec3A::from(self.u);
         let v = Vec3A::from(self.v);
-        let n = self.normal();
-        let d = p - Vec3A::from(self.corner);
-        // Project onto the plane: the point is then on the surface up to rounding, which keeps the offset of
-        // the next ray small.
-        let p = p - n * d.dot(n);
+        let c = Vec3A::from(self.corner);
+        let d = offset_from(ray, t, c);
         let a = d.dot(u) / u.length_squared();
         let b = d.dot(v) / v.length_squared();
-        LocalHit { p, n, uv: Vec2::new(a, b) }
+        // The error of `a` and `b` only slides the point within the plane.
+        let (p, p_error) = self.point_at(a, b);
+        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(a, b) }
+    }
+
+    /// The point `corner + a·u + b·v` and its error bound: on the plane up to the rounding of two products and
+    /// two sums.
+    fn point_at(&self, a: f32, b: f32) -> (Vec3A, Vec3A) {
+        let c = Vec3A::from(self.corner);
+        let (au, bv) = (a * Vec3A::from(self.u), b * Vec3A::from(self.v));
+        (c + au + bv, gamma(3) * (c.abs() + au.abs() + bv.abs()))
     }
 }
 
-/// γ(n) = n·u / (1 − n·u), with u = 2⁻²⁴ the unit roundoff of f32: a bound on the relative error of `n`
-/// successive rounded operations (Higham, "Accuracy and Stability of Numerical Algorithms", §3.1; pbrt-v4 §6.8.1).
-const fn gamma(n: u8) -> f32 {
-    let nu = n as f32 * (f32::EPSILON * 0.5);
-    nu / (1.0 - nu)
+/// The hit point of `ray` at distance `t` relative to the point `q` of a flat shape, as `(o − q) + t·d`: the
+/// difference of two nearby points is exact (Sterbenz) or nearly, and the rest is small, so the result keeps
+/// the precision of the shape's own size. Computing `o + t·d` first rounds it to the spacing of the
+/// coordinates, 1/128 at 10⁵, which made the edges of a 0.5-wide light fuzzy by 1.5 % there.
+#[inline]
+fn offset_from(ray: &Ray, t: f32, q: Vec3A) -> Vec3A {
+    (ray.o - q) + t * ray.d
+}
+
+/// The distance along `ray` to the plane through `q` with (not necessarily unit) normal `nn`, if it lies in
+/// `(0, ∞)` and the origin is farther from the plane than the rounding error of the computation can explain.
+///
+/// `nn_abs` bounds `|nn|` per axis together with its own rounding (for a computed cross product). The
+/// numerator `nn·(q − o)` is the origin's signed distance times `|nn|`; its rounding error is at most
+/// γ(6)·(nn_abs·|q − o|) (the subtraction, the products, the sum, and the rounding of `nn`). When the
+/// numerator is no larger than that, the origin may lie on the plane, and it is the surface the ray leaves
+/// (pbrt-v4 §6.8.7 asks the same of triangles): no hit. A ray spawned off the plane by its hit's error bound
+/// starts strictly on the side it leaves towards, so its numerator either has the true sign (the plane is
+/// behind it) or lies within that bound (no hit): it never finds the plane again.
+#[inline]
+fn plane_distance(ray: &Ray, q: Vec3A, nn: Vec3A, nn_abs: Vec3A) -> Option<f32> {
+    let denom = nn.dot(ray.d);
+    if denom == 0.0 {
+        return None;
+    }
+    let diff = q - ray.o;
+    let num = nn.dot(diff);
+    let t = num / denom;
+    (t > 0.0 && num.abs() > gamma(6) * nn_abs.dot(diff.abs())).then_some(t)
 }
 
 impl Triangle {
@@ -337,8 +382,19 @@ impl Triangle {
             },
             |h| (h.1, h.2),
         );
-        let p = (1.0 - b1 - b2) * Vec3A::from(self.p[0]) + b1 * Vec3A::from(self.p[1]) + b2 * Vec3A::from(self.p[2]);
-        LocalHit { p, n: self.normal(), uv: Vec2::new(b1, b2) }
+        let (p, p_error) = self.point_at(b1, b2);
+        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(b1, b2) }
+    }
+
+    /// The point at barycentrics `(b1, b2)` and its error bound.
+    fn point_at(&self, b1: f32, b2: f32) -> (Vec3A, Vec3A) {
+        let b0 = 1.0 - b1 - b2;
+        let [t0, t1, t2] = [b0 * Vec3A::from(self.p[0]), b1 * Vec3A::from(self.p[1]), b2 * Vec3A::from(self.p[2])];
+        // The interpolation rounds three products and two sums (pbrt-v4's γ(7)·Σ|bi·pi| covers them and the
+        // barycentrics' own error); b0 = 1 − b1 − b2 in f32 makes the weights sum to 1 only within γ(2)·3, which
+        // moves the point by that fraction of its distance from the origin: γ(6)·max|pi|.
+        let max_p = Vec3A::from(self.p[0].abs().max(self.p[1].abs()).max(self.p[2].abs()));
+        (t0 + t1 + t2, gamma(7) * (t0.abs() + t1.abs() + t2.abs()) + gamma(6) * max_p)
     }
 
     /// Barycentrics `(b1, b2)` of a point in the triangle's plane.
@@ -361,26 +417,27 @@ impl Triangle {
 }
 
 impl Plane {
-    /// Distance along `ray` to the hit in `(0, tmax)`.
+    /// Distance along `ray` to the hit in `(0, tmax)`. A ray whose origin lies within the rounding error of the
+    /// plane does not hit it (see [`plane_distance`]).
     #[inline]
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
         let n = Vec3A::from(self.normal);
-        let denom = n.dot(ray.d);
-        if denom == 0.0 {
-            return None;
-        }
-        let t = n.dot(Vec3A::from(self.point) - ray.o) / denom;
-        (t > 0.0 && t < tmax).then_some(t)
+        plane_distance(ray, Vec3A::from(self.point), n, n.abs()).filter(|&t| t < tmax)
     }
 
-    /// Surface data at the hit; `uv` are coordinates in a tangent frame of the plane.
-    pub fn local_hit(&self, p: Vec3A) -> LocalHit {
+    /// Surface data of the hit of `ray` at distance `t`; `uv` are coordinates in a tangent frame of the plane.
+    pub fn local_hit(&self, ray: &Ray, t: f32) -> LocalHit {
         let n = Vec3A::from(self.normal);
         let f = crate::math::Frame::from_normal(n);
-        let d = p - Vec3A::from(self.point);
-        // Project onto the plane: the point is then exactly on it, up to rounding.
-        let p = p - n * d.dot(n);
-        LocalHit { p, n, uv: Vec2::new(d.dot(f.s), d.dot(f.t)) }
+        let q = Vec3A::from(self.point);
+        let d = offset_from(ray, t, q);
+        let (a, b) = (d.dot(f.s), d.dot(f.t));
+        // The point of the plane at (a, b) in its frame: on the plane up to the rounding of two products and two
+        // sums, and of the frame's tangents, which are perpendicular to n within a few ulps (γ(4) of a and b).
+        let (sa, tb) = (a * f.s, b * f.t);
+        let p = q + sa + tb;
+        let p_error = gamma(3) * (q.abs() + sa.abs() + tb.abs()) + gamma(4) * (a.abs() + b.abs()) * n.abs();
+        LocalHit { p, p_error, n, uv: Vec2::new(a, b) }
     }
 }
 
@@ -411,7 +468,7 @@ impl Shape {
     pub fn local_hit(&self, ray: &Ray, t: f32) -> LocalHit {
         match self {
             Shape::Sphere(s) => s.local_hit(ray, t),
-            Shape::Rect(r) => r.local_hit(ray.at(t)),
+            Shape::Rect(r) => r.local_hit(ray, t),
             Shape::Triangle(tri) => tri.local_hit(ray, f32::INFINITY, t),
         }
     }
@@ -427,16 +484,27 @@ impl Shape {
 
     /// A point uniformly distributed by area and its geometric normal.
     pub fn sample_area(&self, u: Vec2) -> (Vec3A, Vec3A) {
+        let (p, _, n) = self.sample_area_with_error(u);
+        (p, n)
+    }
+
+    /// A point uniformly distributed by area, the bound on its error (as [`LocalHit::p_error`]) and its
+    /// geometric normal: what a ray leaving the point is offset by.
+    pub fn sample_area_with_error(&self, u: Vec2) -> (Vec3A, Vec3A, Vec3A) {
         match self {
             Shape::Sphere(s) => {
-                let n = crate::math::uniform_sphere(u);
-                (Vec3A::from(s.center) + n * s.radius, n)
+                let d = crate::math::uniform_sphere(u).to_array().map(f64::from);
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                s.point_at(d.map(|x| x / len))
             }
-            Shape::Rect(r) => (Vec3A::from(r.corner) + u.x * Vec3A::from(r.u) + u.y * Vec3A::from(r.v), r.normal()),
+            Shape::Rect(r) => {
+                let (p, e) = r.point_at(u.x, u.y);
+                (p, e, r.normal())
+            }
             Shape::Triangle(t) => {
                 let (b1, b2) = crate::math::uniform_triangle(u);
-                let p = (1.0 - b1 - b2) * Vec3A::from(t.p[0]) + b1 * Vec3A::from(t.p[1]) + b2 * Vec3A::from(t.p[2]);
-                (p, t.normal())
+                let (p, e) = t.point_at(b1, b2);
+                (p, e, t.normal())
             }
         }
     }
@@ -481,10 +549,14 @@ mod tests {
                     let rel = (f64::from(t) - t_ref).abs() / t_ref;
                     assert!(rel < 1e-7, "r = {radius}, {far} radii away: t = {t}, reference {t_ref}, rel {rel:e}");
                     // The hit point lies on the sphere to within the rounding of its coordinates.
-                    let p = s.local_hit(&r, t).p.as_dvec3();
+                    let hit = s.local_hit(&r, t);
+                    let p = hit.p.as_dvec3();
                     let off = (p - Vec3A::from(center).as_dvec3()).length() - f64::from(radius);
                     let ulp = f64::from(p.abs().max_element() as f32) * f64::from(f32::EPSILON);
                     assert!(off.abs() <= 2.0 * ulp, "r = {radius}: {off:e} off the surface, ulp {ulp:e}");
+                    // ... and within the error bound that spawned rays are offset by.
+                    let bound = f64::from(hit.n.abs().dot(hit.p_error));
+                    assert!(off.abs() <= bound, "r = {radius}: {off:e} off the surface, bound {bound:e}");
                 }
             }
         }
@@ -502,12 +574,78 @@ mod tests {
                 let down = Ray::new(Vec3A::new(4.0 * u.x - 2.0, 1.0, 4.0 * u.y - 2.0), Vec3A::NEG_Y);
                 let t = s.intersect(&down, f32::INFINITY).unwrap();
                 let hit = s.local_hit(&down, t);
-                let o = crate::math::offset_ray_origin(hit.p, hit.n);
                 let w = crate::math::uniform_sphere(rng.next_2d());
                 let w = if w.dot(hit.n) < 0.0 { -w } else { w };
+                let o = crate::math::offset_ray_origin_by_error(hit.p, hit.p_error, hit.n, w);
                 let up = Ray::new(o, w);
                 assert_eq!(s.intersect(&up, f32::INFINITY), None, "R = {radius}: from {o} along {w}");
             }
+        }
+    }
+
+    /// Rectangles, planes and triangles, at home, 10⁴ and 10⁵ units away and scaled by 10⁻³ and 10³: a hit point
+    /// lies within its error bound of the exact surface (measured in f64), and a ray spawned from it by that
+    /// bound, in any direction on either side, never hits the surface again.
+    #[test]
+    fn spawned_rays_never_hit_the_flat_surface_they_leave() {
+        use crate::math::rng::{Domain, Sampler};
+        use crate::math::{offset_ray_origin_by_error, uniform_sphere};
+        let mut rng = Sampler::new(11, Domain::Photon, 0, 0, 0);
+        let places = [
+            (1.0f32, Vec3::ZERO),
+            (1.0, Vec3::new(1e4, -1e4, 3e3)),
+            (1.0, Vec3::splat(-1e5)),
+            (1e-3, Vec3::ZERO),
+            (1e3, Vec3::ZERO),
+        ];
+        for (scale, by) in places {
+            let at = |p: Vec3| scale * p + by;
+            let (a, b, c) =
+                (at(Vec3::new(-1.0, 0.2, -0.7)), at(Vec3::new(1.3, -0.4, 0.1)), at(Vec3::new(-0.2, 0.9, 1.1)));
+            let rect = Shape::Rect(Rect { corner: a, u: b - a, v: c - a });
+            let tri = Shape::Triangle(Triangle::new(a, b, c));
+            let plane = Plane { point: a, normal: (b - a).cross(c - a).normalize() };
+            // The exact plane of the three points, in f64: unit normal and offset.
+            let n64 = (b.as_dvec3() - a.as_dvec3()).cross(c.as_dvec3() - a.as_dvec3()).normalize();
+            let plane_n = Vec3A::from(plane.normal).as_dvec3();
+            let centre = Vec3A::from(at(Vec3::new(0.0, 0.3, 0.2)));
+            let mut tested = 0;
+            for _ in 0..3000 {
+                let o = centre + 3.0 * scale * uniform_sphere(rng.next_2d());
+                let target =
+                    Vec3A::from(a) + rng.next_f32() * Vec3A::from(b - a) + rng.next_f32() * 0.9 * Vec3A::from(c - a);
+                let ray = Ray::new(o, fmath::normalize(target - o));
+                let w = uniform_sphere(rng.next_2d());
+                for (name, hit, again, exact) in [
+                    (
+                        "rect",
+                        rect.intersect(&ray, f32::INFINITY).map(|t| rect.local_hit(&ray, t)),
+                        Box::new(|r: &Ray| rect.intersect(r, f32::INFINITY)) as Box<dyn Fn(&Ray) -> Option<f32>>,
+                        n64,
+                    ),
+                    (
+                        "triangle",
+                        tri.intersect(&ray, f32::INFINITY).map(|t| tri.local_hit(&ray, t)),
+                        Box::new(|r: &Ray| tri.intersect(r, f32::INFINITY)),
+                        n64,
+                    ),
+                    (
+                        "plane",
+                        plane.intersect(&ray, f32::INFINITY).map(|t| plane.local_hit(&ray, t)),
+                        Box::new(|r: &Ray| plane.intersect(r, f32::INFINITY)),
+                        plane_n,
+                    ),
+                ] {
+                    let Some(hit) = hit else { continue };
+                    tested += 1;
+                    let off = (hit.p.as_dvec3() - Vec3A::from(a).as_dvec3()).dot(exact);
+                    let bound = f64::from(hit.n.abs().dot(hit.p_error));
+                    assert!(off.abs() <= bound, "{name} ×{scale} at {by}: {off:e} off the plane, bound {bound:e}");
+                    let spawned = Ray::new(offset_ray_origin_by_error(hit.p, hit.p_error, hit.n, w), w);
+                    assert_eq!(again(&spawned), None, "{name} ×{scale} at {by}: {spawned:?} from {:?}", hit.p);
+                }
+            }
+            assert!(tested > 6000, "{tested}");
         }
     }
 

@@ -10,10 +10,18 @@
 //! - An integrator updates its throughput with `beta *= s.f * |wi·ns| / s.pdf` for every sample `s`. For a delta
 //!   lobe we follow pbrt: `f = (reflectance or transmittance) / |cos θi|` and `pdf` is the discrete probability
 //!   of choosing that lobe, so the same formula gives `beta *= reflectance / probability`.
-//! - Shading normals: a reflective lobe scatters only when `wo` and `wi` lie on the same side of both the
-//!   geometric normal `ng` and the shading normal (anything else would leak light through the surface or
-//!   reflect it into the surface); a transmitted direction must cross the geometric surface. Sampled directions
-//!   that break these rules are returned as `None` (no light goes there).
+//! - Shading normals (Veach 1997, §5.3): the geometric normal `ng` alone decides between reflection and
+//!   transmission, the shading normal only shapes the lobe. A reflective lobe scatters exactly when `wo` and
+//!   `wi` lie on the same side of `ng`, whatever their sides of the shading normal: anything else would leak
+//!   light through the surface (light-leak rule), and zeroing pairs that a tilted shading normal separates
+//!   would draw black fringes where the shading and geometric horizons disagree (black-fringe rule). The
+//!   cosine is the shading one, `|wi·ns|`. The diffuse lobes sample `|wi·ns|/π` over `wo`'s geometric
+//!   hemisphere, which reaches all of it and integrates to 1 for any tilt; a sampled direction on the other
+//!   geometric side (from the Phong lobe) is returned as `None`, and [`Bsdf::pdf`] is 0 there, so it is the
+//!   density of the samples actually returned. A transmitted direction must cross the geometric surface.
+//! - Light paths with shading normals are not the mirror image of camera paths: the BSDF with the shading
+//!   cosine is not symmetric with respect to the geometric measure, so photons scatter with its adjoint,
+//!   [`Bsdf::adjoint_correction`] (Veach 1997, eq. 5.17).
 //! - Glass: `wo` on the side the geometric normal points to means the path is outside, so light is entering
 //!   and the relative index is `eta`; on the other side it is `1/eta`. In [`TransportMode::Radiance`] a
 //!   transmitted sample is scaled by `1/η'²` (η' = η_transmitted / η_incident as seen from `wo`), because
@@ -122,7 +130,8 @@ impl Bsdf {
     }
 
     /// The BSDF of the non-delta lobes for the pair (`wo`, `wi`), without the cosine factor. Zero for mirrors
-    /// and glass, and whenever `wo` and `wi` are not on the same side of both normals.
+    /// and glass, and whenever `wo` and `wi` are not on the same side of the geometric normal; their sides of
+    /// the shading normal do not matter (the black-fringe rule, see the module docs).
     pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Rgb {
         // The non-delta lobes are reflective and reciprocal: the transport mode does not change them.
         let _ = mode;
@@ -133,23 +142,60 @@ impl Bsdf {
         self.f_local(wo, wi)
     }
 
+    /// The factor that turns the sample weight `f·|wi·ns|/pdf` of a camera path into that of a light path
+    /// (a photon arriving from `wo` and leaving along `wi`): `|wo·ns|·|wi·ng| / (|wo·ng|·|wi·ns|)`.
+    ///
+    /// With shading normals the scattering kernel is `f(wo, wi)·|wi·ns|`, taken against the geometric
+    /// projected solid angle `|wi·ng| dω`: the BSDF as the geometry sees it is `f·|wi·ns|/|wi·ng|`, which is not
+    /// symmetric. Radiance (camera paths) uses it as it is; flux (photons) must use its adjoint, with the roles
+    /// of `wo` and `wi` exchanged (Veach 1997, eq. 5.17; pbrt-v3's `CorrectShadingNormal`). Without it photon
+    /// maps and the path tracer disagree on every smooth-shaded surface. 1 where the shading normal is the
+    /// geometric one; 0 for a direction in the geometric tangent plane (no flux crosses it).
+    #[inline]
+    pub fn adjoint_correction(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        if self.frame.n == self.ng {
+            return 1.0;
+        }
+        let num = wo.dot(self.frame.n).abs() * wi.dot(self.ng).abs();
+        let den = wo.dot(self.ng).abs() * wi.dot(self.frame.n).abs();
+        if den > 0.0 { num / den } else { 0.0 }
+    }
+
+    /// The factor that turns the flux `Φ` of a photon arriving from `wo` into what a density estimate with this
+    /// BSDF needs: `|wo·ns| / |wo·ng|`. A photon's flux crossed the geometric surface, `Φ = L·|wo·ng| dA dω`,
+    /// while the reflected radiance weighs incident radiance with the shading cosine, `L·|wo·ns|`; so
+    /// `Σ f·Φ·|wo·ns|/|wo·ng| / A` estimates it (the last vertex of a light path in Veach 1997, §5.3). 1 where
+    /// the normals agree, 0 for a photon grazing the geometric surface.
+    #[inline]
+    pub fn arrival_correction(&self, wo: Vec3A) -> f32 {
+        if self.frame.n == self.ng {
+            return 1.0;
+        }
+        let den = wo.dot(self.ng).abs();
+        if den > 0.0 { wo.dot(self.frame.n).abs() / den } else { 0.0 }
+    }
+
     /// The solid-angle density with which [`Bsdf::sample`] draws `wi` from its non-delta lobes, lobe selection
     /// probabilities included. Zero when the BSDF has no non-delta lobe.
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
-        let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
-        if !same_hemisphere(wo, wi) {
+        let side = wo.dot(self.ng);
+        if side * wi.dot(self.ng) <= 0.0 {
             return 0.0;
         }
+        let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        // `|wi·ns|/π` over wo's geometric hemisphere, which integrates to 1 for any shading normal (see
+        // `sample_shading_cosine`).
+        let cosine = wi.z.abs() * FRAC_1_PI;
         match self.bxdf {
-            Bxdf::Lambert { .. } => wi.z.abs() * FRAC_1_PI,
+            Bxdf::Lambert { .. } => cosine,
             Bxdf::Phong { kd, ks, exponent } => {
                 let p_glossy = phong_glossy_probability(kd, ks);
-                (1.0 - p_glossy) * wi.z.abs() * FRAC_1_PI + p_glossy * phong_lobe_pdf(wo, wi, exponent)
+                (1.0 - p_glossy) * cosine + p_glossy * phong_lobe_pdf(wo, wi, exponent)
             }
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => 0.0,
             Bxdf::Mix { diffuse, specular, transmission, .. } => {
                 let sum = diffuse + specular + transmission;
-                if sum > 0.0 { diffuse / sum * wi.z.abs() * FRAC_1_PI } else { 0.0 }
+                if sum > 0.0 { diffuse / sum * cosine } else { 0.0 }
             }
         }
     }
@@ -163,18 +209,17 @@ impl Bsdf {
     /// its absorption shows in the sample weight `f·|cos|/pdf` (and in [`Bsdf::albedo`], for Russian roulette).
     pub fn sample(&self, wo: Vec3A, u: f32, u2: Vec2, mode: TransportMode) -> Option<BsdfSample> {
         let wo_l = self.frame.to_local(wo);
+        // The hemisphere of the shading normal on wo's geometric side (see the module docs).
+        let up = wo.dot(self.ng);
         match self.bxdf {
-            Bxdf::Lambert { .. } => self.sample_non_delta(wo, flip_to(cosine_hemisphere(u2), wo_l)),
+            Bxdf::Lambert { .. } => self.sample_non_delta(wo, self.sample_shading_cosine(u2, up)),
             Bxdf::Phong { kd, ks, exponent } => {
+                // The lobe around the mirror direction may dip below the horizon: `sample_non_delta` returns
+                // nothing there.
                 let wi_l = if u < phong_glossy_probability(kd, ks) {
-                    let wi_l = sample_phong_lobe(wo_l, exponent, u2);
-                    // The lobe around the mirror direction may dip below the horizon: nothing goes there.
-                    if !same_hemisphere(wo_l, wi_l) {
-                        return None;
-                    }
-                    wi_l
+                    sample_phong_lobe(wo_l, exponent, u2)
                 } else {
-                    flip_to(cosine_hemisphere(u2), wo_l)
+                    self.sample_shading_cosine(u2, up)
                 };
                 self.sample_non_delta(wo, wi_l)
             }
@@ -187,7 +232,7 @@ impl Bsdf {
                 }
                 let x = u * sum;
                 if x < diffuse || (specular <= 0.0 && transmission <= 0.0) {
-                    self.sample_non_delta(wo, flip_to(cosine_hemisphere(u2), wo_l))
+                    self.sample_non_delta(wo, self.sample_shading_cosine(u2, up))
                 } else if x < diffuse + specular || transmission <= 0.0 {
                     self.sample_mirror(wo, wo_l, Rgb::splat(specular), specular / sum)
                 } else {
@@ -232,11 +277,9 @@ impl Bsdf {
         self.bxdf.has_non_delta()
     }
 
-    /// The non-delta part in the local frame (geometric side already checked).
+    /// The non-delta part in the local frame, for directions on the same geometric side (checked by the
+    /// caller): no test of the shading hemisphere here, which is the black-fringe rule.
     fn f_local(&self, wo: Vec3A, wi: Vec3A) -> Rgb {
-        if !same_hemisphere(wo, wi) {
-            return Rgb::ZERO;
-        }
         match self.bxdf {
             Bxdf::Lambert { r } => r * FRAC_1_PI,
             Bxdf::Phong { kd, ks, exponent } => {
@@ -245,6 +288,19 @@ impl Bsdf {
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => Rgb::ZERO,
             Bxdf::Mix { color, diffuse, .. } => color * (diffuse * FRAC_1_PI),
         }
+    }
+
+    /// A local direction with density `|wi·ns|/π` over the geometric hemisphere on the side of `side` (`wo·ng`).
+    ///
+    /// The cosine-weighted hemisphere of the shading normal on that side sticks out beyond the geometric horizon
+    /// where the normals differ; the part that does, reflected through the origin (`wi → −wi`), is exactly the
+    /// part of the geometric hemisphere below the shading horizon, with the same `|wi·ns|`. So every direction
+    /// on the geometric side is reachable (the BSDF is not zero there: the black-fringe rule), the density is
+    /// `|wi·ns|/π` everywhere on it, and it integrates to 1: `∫ |wi·ns| dωi = π` over any hemisphere, whatever
+    /// its tilt against `ns`. A Lambert sample then carries exactly its albedo.
+    fn sample_shading_cosine(&self, u2: Vec2, side: f32) -> Vec3A {
+        let w = flip_to(cosine_hemisphere(u2), side);
+        if self.frame.to_world(w).dot(self.ng) * side < 0.0 { -w } else { w }
     }
 
     /// A sample of the non-delta lobes at the local direction `wi_l`: `f` and `pdf` from `f` and `pdf`, so that
@@ -361,16 +417,11 @@ impl Bxdf {
     }
 }
 
-/// Whether two local directions are strictly on the same side of the shading surface.
+/// `w` (on local +z) moved to local −z when `side` is negative: the shading hemisphere on the geometric side
+/// of `wo` when `side = wo·ng` (the shading normal lies on `ng`'s side).
 #[inline]
-fn same_hemisphere(a: Vec3A, b: Vec3A) -> bool {
-    a.z * b.z > 0.0
-}
-
-/// `w` (on local +z) moved to the hemisphere of `wo`.
-#[inline]
-fn flip_to(w: Vec3A, wo: Vec3A) -> Vec3A {
-    if wo.z < 0.0 { Vec3A::new(w.x, w.y, -w.z) } else { w }
+fn flip_to(w: Vec3A, side: f32) -> Vec3A {
+    if side < 0.0 { Vec3A::new(w.x, w.y, -w.z) } else { w }
 }
 
 /// `cos^n α` for the angle α between `wi` and the mirror direction of `wo` (local frame), and 0 where cos α ≤ 0

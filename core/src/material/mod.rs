@@ -593,6 +593,7 @@ mod tests {
         let hit = Hit {
             t: 1.0,
             p: Vec3A::new(1.0, 2.0, 3.0),
+            p_error: Vec3A::ZERO,
             n: Vec3A::Z,
             ns,
             uv: Vec2::new(0.25, 0.5),

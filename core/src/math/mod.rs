@@ -1,4 +1,5 @@
-//! Small geometric helpers: rays and boxes, orthonormal frames, robust ray offsets, sampling warps,
+//! Small geometric helpers: rays and boxes, orthonormal frames, floating-point error bounds and robust ray
+//! offsets, sampling warps,
 //! reflection, refraction and the Fresnel equations; the portable float functions ([`fmath`]) and the
 //! deterministic random streams ([`rng`]).
 
@@ -45,7 +46,9 @@ impl Frame {
     }
 }
 
-/// Moves a ray origin off a surface so that the new ray does not hit the surface it leaves.
+/// Moves a ray origin off a surface so that the new ray does not hit the surface it leaves, for a point whose
+/// error is not tracked (points sampled on area lights). Hits carry an error bound and use
+/// [`offset_ray_origin_by_error`] instead.
 ///
 /// Wächter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection" (Ray Tracing Gems, ch. 6):
 /// the offset is a fixed number of ulps of each coordinate, so it scales with the distance from the origin and
@@ -68,6 +71,56 @@ pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
         out[i] = if pa[i].abs() < ORIGIN { pa[i] + FLOAT_SCALE * na[i] } else { moved };
     }
     Vec3A::from_array(out)
+}
+
+/// γ(n) = n·u / (1 − n·u), with u = 2⁻²⁴ the unit roundoff of f32: a bound on the relative error of `n`
+/// successive rounded operations (Higham, "Accuracy and Stability of Numerical Algorithms", §3.1; pbrt-v4
+/// §6.8.1).
+pub const fn gamma(n: u8) -> f32 {
+    let nu = n as f32 * (f32::EPSILON * 0.5);
+    nu / (1.0 - nu)
+}
+
+/// The next `f32` towards +∞ (`x` itself for +∞ and NaN).
+#[inline]
+pub fn next_float_up(x: f32) -> f32 {
+    if x.is_infinite() && x > 0.0 || x.is_nan() {
+        return x;
+    }
+    let x = if x == 0.0 { 0.0 } else { x };
+    let bits = x.to_bits();
+    f32::from_bits(if x >= 0.0 { bits + 1 } else { bits - 1 })
+}
+
+/// The next `f32` towards −∞.
+#[inline]
+pub fn next_float_down(x: f32) -> f32 {
+    -next_float_up(-x)
+}
+
+/// The origin of a ray leaving a surface point `p` towards `w`, moved off the surface far enough that the ray
+/// cannot hit the surface it leaves (pbrt-v4 §6.8.6).
+///
+/// `p_error` bounds, per coordinate, how far the computed `p` may lie from the true surface point; `n` is the
+/// geometric normal. The origin moves along `±n`, to `w`'s side, by `|n|·p_error`: the farthest the error box
+/// around `p` reaches along the normal. The sum is then rounded outward (each moved coordinate one `f32`
+/// further), so the rounding of the addition cannot bring it back inside the box. The offset is as small as the
+/// computation of `p` allows: zero for a point computed exactly, a few ulps of the coordinates otherwise.
+#[inline]
+pub fn offset_ray_origin_by_error(p: Vec3A, p_error: Vec3A, n: Vec3A, w: Vec3A) -> Vec3A {
+    let d = n.abs().dot(p_error);
+    let offset = if w.dot(n) < 0.0 { -d * n } else { d * n };
+    let po = (p + offset).to_array();
+    let off = offset.to_array();
+    Vec3A::from_array(std::array::from_fn(|i| {
+        if off[i] > 0.0 {
+            next_float_up(po[i])
+        } else if off[i] < 0.0 {
+            next_float_down(po[i])
+        } else {
+            po[i]
+        }
+    }))
 }
 
 /// Cosine-weighted direction on the local +z hemisphere (Malley's method); pdf = cos θ / π.
@@ -194,6 +247,24 @@ mod tests {
         assert!(wt.z < 0.0);
         let sin_t = (wt.x * wt.x + wt.y * wt.y).sqrt();
         assert!((fmath::sin(theta_i) - 1.5 * sin_t).abs() < 1e-5);
+    }
+
+    #[test]
+    fn error_offset_leaves_the_error_box_on_the_side_of_w() {
+        let p = Vec3A::new(10_000.0, -3.0, 0.25);
+        let err = Vec3A::new(1e-3, 2e-7, 1e-8);
+        let n = fmath::normalize(Vec3A::new(0.1, 1.0, -0.2));
+        for w in [n, -n] {
+            let q = offset_ray_origin_by_error(p, err, n, w);
+            // The whole error box around p lies behind the plane through q with normal n (on w's side).
+            let reach = n.abs().dot(err);
+            assert!((q - p).dot(n) * w.dot(n).signum() > reach * (1.0 - 1e-6), "{q} from {p}");
+        }
+        // An exact point is not moved.
+        assert_eq!(offset_ray_origin_by_error(p, Vec3A::ZERO, n, n), p);
+        assert_eq!(next_float_up(-0.0), f32::from_bits(1));
+        assert_eq!(next_float_down(1.0), 1.0 - f32::EPSILON / 2.0);
+        assert_eq!(next_float_up(-1.0), -1.0 + f32::EPSILON / 2.0);
     }
 
     #[test]

@@ -7,6 +7,11 @@
 //! photon is stored; the BSDF is sampled in importance (flux) mode and Russian roulette on the sampled weight
 //! `w = f·|cos θ|/pdf` keeps the path with probability `q = min(1, max(w))`, dividing its power by `q`: a
 //! photon's power never grows where `w ≤ 1` (every material here but the Phong lobe near grazing angles).
+//!
+//! Shading normals (Veach 1997, §5.3): a photon scatters with the adjoint BSDF, its weight multiplied by
+//! `|wo·ns|·|wi·ng| / (|wo·ng|·|wi·ns|)` ([`crate::material::bsdf::Bsdf::adjoint_correction`]), and a stored
+//! photon's flux by `|wo·ns| / |wo·ng|` ([`crate::material::bsdf::Bsdf::arrival_correction`]); both are 1 where
+//! the shading normal is the geometric one. Progressive photon mapping traces its passes here too.
 //! Photon `i` of pass `p` draws from the stream `(seed, p, i)`; paths are traced in parallel in fixed chunks and
 //! concatenated in order, so the maps are bit-identical whatever the thread count.
 
@@ -16,7 +21,7 @@ use crate::light::Light;
 use crate::material::Material;
 use crate::material::bsdf::TransportMode;
 use crate::math::rng::Sampler;
-use crate::math::{Frame, Ray, cosine_hemisphere, uniform_sphere};
+use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
 use crate::scene::{Integrator, SceneError};
 use rayon::prelude::*;
@@ -125,14 +130,10 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
         Light::Point { p, .. } => Ray::new(p, uniform_sphere(u)),
         Light::Area { prim, two_sided, .. } => {
             let Some(pr) = prep.geometry.prims.get(prim as usize) else { return };
-            let (p, n) = pr.shape.sample_area(u);
-            let mut d = cosine_hemisphere(u2);
-            let mut n = n;
-            if two_sided && s.next_f32() < 0.5 {
-                n = -n;
-            }
-            d = Frame::from_normal(n).to_world(d);
-            Ray::new(crate::math::offset_ray_origin(p, n), d)
+            let (p, p_error, n) = pr.shape.sample_area_with_error(u);
+            let n = if two_sided && s.next_f32() < 0.5 { -n } else { n };
+            let d = Frame::from_normal(n).to_world(cosine_hemisphere(u2));
+            Ray::new(offset_ray_origin_by_error(p, p_error, n, d), d)
         }
     };
     let mut power = phi;
@@ -149,9 +150,11 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
                 PhotonKind::Indirect => depth > 0,
             };
             if keep {
-                // Store the normal on the side the photon arrived from.
+                // Store the normal on the side the photon arrived from, and the flux as the shading normal
+                // sees it (`Bsdf::arrival_correction`), so that density estimates match the path tracer on
+                // smooth-shaded surfaces.
                 let n = hit.normal_towards(wo);
-                out.push(Photon::new(hit.p, wo, n, power, hit.object));
+                out.push(Photon::new(hit.p, wo, n, power * bsdf.arrival_correction(wo), hit.object));
             }
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
@@ -159,7 +162,8 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
         if bs.pdf.is_nan() || bs.pdf <= 0.0 {
             return;
         }
-        let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        // Photons carry flux: the adjoint of the shading-normal BSDF (Veach 1997, eq. 5.17).
+        let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf * bsdf.adjoint_correction(wo, bs.wi));
         let q = w.max_element().min(1.0);
         if q.is_nan() || q <= 0.0 || s.next_f32() >= q {
             return;
