@@ -100,7 +100,7 @@ impl Light {
                 Some(LightSample { wi: d / dist, dist, li: intensity / dist2, pdf: 1.0, delta: true, p: lp })
             }
             Light::Area { prim, le, two_sided, area } => {
-                let (lp, ln) = geometry.prims.get(prim as usize)?.shape.sample_area(u2);
+                let (lp, lp_error, ln) = geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
                 let d = lp - p;
                 let dist2 = d.length_squared();
                 if dist2 == 0.0 {
@@ -114,7 +114,8 @@ impl Light {
                 }
                 let pdf = dist2 / (cos_l.abs() * area);
                 let towards = if cos_l > 0.0 { ln } else { -ln };
-                let p = crate::math::offset_ray_origin(lp, towards);
+                // Off the light by its sampled point's error bound (pbrt-v4 §6.8.6), towards the shaded point.
+                let p = crate::math::offset_ray_origin_by_error(lp, lp_error, ln, towards);
                 Some(LightSample { wi, dist, li: le, pdf, delta: false, p })
             }
         }

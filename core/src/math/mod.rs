@@ -46,33 +46,6 @@ impl Frame {
     }
 }
 
-/// Moves a ray origin off a surface so that the new ray does not hit the surface it leaves, for a point whose
-/// error is not tracked (points sampled on area lights). Hits carry an error bound and use
-/// [`offset_ray_origin_by_error`] instead.
-///
-/// Wächter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection" (Ray Tracing Gems, ch. 6):
-/// the offset is a fixed number of ulps of each coordinate, so it scales with the distance from the origin and
-/// still works 10,000 units away. Their 256 ulps suit hit points interpolated on a GPU; ours are projected back
-/// onto the surface (planes, rectangles, spheres) or interpolated from barycentrics (triangles), within a few
-/// ulps, so 16 ulps along the normal suffice — 0.016 units at 10,000, where 256 ulps (0.25) would start rays
-/// inside nearby objects. `n` must point to the side the new ray leaves towards.
-#[inline]
-pub fn offset_ray_origin(p: Vec3A, n: Vec3A) -> Vec3A {
-    const ORIGIN: f32 = 1.0 / 32.0;
-    const FLOAT_SCALE: f32 = 1.0 / 1_048_576.0;
-    const INT_SCALE: f32 = 16.0;
-    let of_i = [(INT_SCALE * n.x) as i32, (INT_SCALE * n.y) as i32, (INT_SCALE * n.z) as i32];
-    let pa = p.to_array();
-    let na = n.to_array();
-    let mut out = [0.0f32; 3];
-    for i in 0..3 {
-        let bits = pa[i].to_bits() as i32;
-        let moved = f32::from_bits((bits + if pa[i] < 0.0 { -of_i[i] } else { of_i[i] }) as u32);
-        out[i] = if pa[i].abs() < ORIGIN { pa[i] + FLOAT_SCALE * na[i] } else { moved };
-    }
-    Vec3A::from_array(out)
-}
-
 /// γ(n) = n·u / (1 − n·u), with u = 2⁻²⁴ the unit roundoff of f32: a bound on the relative error of `n`
 /// successive rounded operations (Higham, "Accuracy and Stability of Numerical Algorithms", §3.1; pbrt-v4
 /// §6.8.1).
@@ -265,16 +238,5 @@ mod tests {
         assert_eq!(next_float_up(-0.0), f32::from_bits(1));
         assert_eq!(next_float_down(1.0), 1.0 - f32::EPSILON / 2.0);
         assert_eq!(next_float_up(-1.0), -1.0 + f32::EPSILON / 2.0);
-    }
-
-    #[test]
-    fn offset_leaves_a_plane_far_from_the_origin() {
-        let p = Vec3A::new(10_000.0, 10_000.0, 3.0);
-        let q = offset_ray_origin(p, Vec3A::Z);
-        assert!(q.z > p.z);
-        let q = offset_ray_origin(Vec3A::new(1.0, 2.0, 10_000.0), Vec3A::Z);
-        assert!(q.z > 10_000.0);
-        let q = offset_ray_origin(Vec3A::new(1.0, 2.0, -10_000.0), Vec3A::Z);
-        assert!(q.z > -10_000.0);
     }
 }
