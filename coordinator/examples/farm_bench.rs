@@ -358,13 +358,9 @@ fn model() {
         };
         let cuts: Vec<u32> = if integrator == Integrator::Progressive {
             let default = photon_coordinator::scheduler::passes_per_block_for(units, lab.len() as u32);
-            // The default, and finer cuts for comparison (more blocks: a shorter tail, more bytes to send back).
-            vec![
-                default,
-                units.div_ceil(lab.len() as u32 * 8),
-                units.div_ceil(lab.len() as u32 * 16),
-                units.div_ceil(lab.len() as u32 * 32),
-            ]
+            // The default, and other cuts for comparison (more blocks: a shorter tail, more bytes to send back).
+            let per_worker = |k: u32| units.div_ceil(lab.len() as u32 * k);
+            vec![default, per_worker(4), per_worker(8), per_worker(32)]
         } else {
             vec![photon_coordinator::scheduler::rows_per_strip_for(height, lab.len() as u32)]
         };
