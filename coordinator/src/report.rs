@@ -178,9 +178,9 @@ pub fn progress_bar(show: bool, strips: usize, resumed: usize) -> indicatif::Pro
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::new(strips as u64);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} strips {msg}")
-    {
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{spinner} [{elapsed_precise}] {bar:32} {pos}/{len} strips, ~{eta} left {msg}",
+    ) {
         bar.set_style(style);
     }
     bar.set_position(resumed as u64);

@@ -1,0 +1,214 @@
+//! The memory a job needs, estimated from its settings before anything is allocated, so that a job that cannot
+//! fit is refused with the setting to change instead of aborting the process halfway (a 65536 × 65536 image
+//! alone is 51 GB of f32 pixels).
+//!
+//! The estimates are upper bounds of the large buffers only (the scene's geometry is already loaded when they
+//! are made): the coordinator checks a whole job ([`MemoryEstimate::job`]) against its machine, a worker checks
+//! each strip request ([`MemoryEstimate::strip`]) against its own.
+
+use crate::scene::{Integrator, RenderSettings};
+
+/// Bytes per pixel of an assembled image: the f32 RGB pixels (12), the strips' pixels as they arrive before
+/// being copied in (12), and the encoder's copy when the image is written (12).
+pub const IMAGE_BYTES_PER_PIXEL: u64 = 36;
+
+/// Bytes per pixel of one strip on a worker: the rendered f32 RGB pixels (12), their wire bytes (12) and the
+/// chunked events that carry them (12).
+pub const STRIP_BYTES_PER_PIXEL: u64 = 36;
+
+/// Bytes per pixel of progressive photon mapping's statistics (count, radius, flux and direct light, padded).
+pub const PROGRESSIVE_BYTES_PER_PIXEL: u64 = 48;
+
+/// Photons stored per emitted path, an upper bound for scenes of usual albedo (Russian roulette ends a path
+/// after 1/(1 − albedo) bounces on average: 3.3 at albedo 0.7).
+pub const PHOTONS_PER_PATH: u64 = 4;
+
+/// Bytes per stored photon: the photon (36) and its share of the kd-tree, and of the encoded blob.
+pub const BYTES_PER_PHOTON: u64 = 128;
+
+/// Bytes per candidate of a k-nearest query buffer (index and squared distance, with slack).
+pub const BYTES_PER_NEIGHBOUR: u64 = 16;
+
+/// The large buffers of a job, in bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// Pixels: the image being assembled, or one strip's.
+    pub image: u64,
+    /// The global and caustic photon maps.
+    pub photon_maps: u64,
+    /// One progressive pass's photon map, traced while a strip renders.
+    pub pass_map: u64,
+    /// Progressive photon mapping's per-pixel statistics of a strip.
+    pub progressive: u64,
+    /// The k-nearest buffers of every render thread.
+    pub k_nearest: u64,
+}
+
+/// A job or strip that does not fit the memory it may use.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{setting}: the job needs about {} ({what} {}), more than the {} available; {fits}",
+    gib(*needed), gib(*part), gib(*budget)
+)]
+pub struct BudgetError {
+    /// The setting that decides the largest part, e.g. `camera.width × camera.height`.
+    pub setting: &'static str,
+    /// What the largest part is.
+    pub what: &'static str,
+    /// Bytes of the largest part.
+    pub part: u64,
+    /// Bytes of the whole estimate.
+    pub needed: u64,
+    /// Bytes available.
+    pub budget: u64,
+    /// What would fit, in the setting's terms.
+    pub fits: String,
+}
+
+/// `bytes` in GiB or MiB, for messages.
+pub fn gib(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
+    } else {
+        format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
+    }
+}
+
+impl MemoryEstimate {
+    /// A whole render on one machine: the image, the photon maps, and the strips of its in-process workers
+    /// (`strip_rows` rows at a time on `threads` threads).
+    pub fn job(width: u32, height: u32, strip_rows: u32, settings: &RenderSettings, threads: usize) -> Self {
+        let strip = Self::strip(width, strip_rows.min(height), settings, threads);
+        let paths = match settings.integrator {
+            Integrator::PhotonMap => u64::from(settings.photons.global),
+            Integrator::FinalGather => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
+            Integrator::Path | Integrator::Direct | Integrator::Progressive => 0,
+        };
+        Self {
+            image: pixels(width, height).saturating_mul(IMAGE_BYTES_PER_PIXEL).saturating_add(strip.image),
+            photon_maps: paths.saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON),
+            ..strip
+        }
+    }
+
+    /// One strip of `rows` rows of an image `width` pixels wide on a worker with `threads` render threads (the
+    /// photon maps are not counted: they arrived as a blob whose size the worker already limits).
+    pub fn strip(width: u32, rows: u32, settings: &RenderSettings, threads: usize) -> Self {
+        let px = pixels(width, rows);
+        let progressive = settings.integrator == Integrator::Progressive;
+        let gathers = settings.integrator.needs_photon_maps() || progressive;
+        Self {
+            image: px.saturating_mul(STRIP_BYTES_PER_PIXEL),
+            photon_maps: 0,
+            pass_map: if progressive {
+                u64::from(settings.photons.pass_photons).saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON)
+            } else {
+                0
+            },
+            progressive: if progressive { px.saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL) } else { 0 },
+            k_nearest: if gathers {
+                u64::from(settings.photons.k).saturating_mul(BYTES_PER_NEIGHBOUR).saturating_mul(threads as u64)
+            } else {
+                0
+            },
+        }
+    }
+
+    /// The sum of the parts.
+    pub fn total(&self) -> u64 {
+        [self.image, self.photon_maps, self.pass_map, self.progressive, self.k_nearest]
+            .iter()
+            .fold(0u64, |a, &b| a.saturating_add(b))
+    }
+
+    /// `Ok` when the estimate fits `budget` bytes; otherwise the largest part, its setting, and the value of that
+    /// setting that would fit with the other parts as they are. `width`, `height` and `settings` are the job's.
+    pub fn check(&self, budget: u64, width: u32, height: u32, settings: &RenderSettings) -> Result<(), BudgetError> {
+        let needed = self.total();
+        if needed <= budget {
+            return Ok(());
+        }
+        let parts = [
+            (self.image, "camera.width × camera.height", "pixels"),
+            (self.photon_maps, "render.photons.global", "photon maps"),
+            (self.pass_map, "render.photons.pass_photons", "a progressive pass's photons"),
+            (self.progressive, "camera.width", "progressive statistics"),
+            (self.k_nearest, "render.photons.k", "k-nearest buffers"),
+        ];
+        let (part, setting, what) = parts.iter().copied().max_by_key(|p| p.0).unwrap_or(parts[0]);
+        // The share of the budget the largest part may have, the others staying as they are.
+        let room = budget.saturating_sub(needed - part);
+        let scale = room as f64 / part.max(1) as f64;
+        let fits = if room == 0 {
+            "the other parts alone do not fit".to_owned()
+        } else {
+            match what {
+                "pixels" => {
+                    let s = scale.sqrt();
+                    let (w, h) = ((f64::from(width) * s) as u32, (f64::from(height) * s) as u32);
+                    format!("an image of about {w} × {h} pixels would fit")
+                }
+                "photon maps" => {
+                    let paths = (f64::from(settings.photons.global) * scale) as u64;
+                    format!("about {paths} photon paths (global and caustic together) would fit")
+                }
+                "a progressive pass's photons" => {
+                    format!(
+                        "about {} photon paths per pass would fit",
+                        (f64::from(settings.photons.pass_photons) * scale) as u64
+                    )
+                }
+                "progressive statistics" => {
+                    format!("an image about {} pixels wide would fit", (f64::from(width) * scale) as u64)
+                }
+                _ => format!("k = {} would fit", (f64::from(settings.photons.k) * scale) as u64),
+            }
+        };
+        Err(BudgetError { setting, what, part, needed, budget, fits })
+    }
+}
+
+fn pixels(width: u32, rows: u32) -> u64 {
+    u64::from(width) * u64::from(rows)
+}
+
+/// The machine's physical memory in bytes, from `/proc/meminfo` (`MemTotal`); `None` where it cannot be read.
+pub fn machine_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    text.lines()
+        .find_map(|l| l.strip_prefix("MemTotal:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        .map(|kib| kib * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_huge_image_is_refused_with_what_fits() {
+        let settings = RenderSettings::default();
+        let e = MemoryEstimate::job(65_536, 65_536, 16, &settings, 8);
+        assert!(e.image > 140 << 30, "{e:?}");
+        let err = e.check(16 << 30, 65_536, 65_536, &settings).unwrap_err();
+        assert_eq!(err.setting, "camera.width × camera.height");
+        let msg = err.to_string();
+        assert!(msg.contains("would fit") && msg.contains("16.0 GiB"), "{msg}");
+        // The suggested size does fit.
+        let fits = MemoryEstimate::job(21_000, 21_000, 16, &settings, 8);
+        assert!(fits.check(16 << 30, 21_000, 21_000, &settings).is_ok(), "{fits:?}");
+        assert!(MemoryEstimate::job(512, 512, 16, &settings, 8).check(1 << 30, 512, 512, &settings).is_ok());
+    }
+
+    #[test]
+    fn photon_budgets_name_their_setting() {
+        let mut settings = RenderSettings { integrator: Integrator::PhotonMap, ..Default::default() };
+        settings.photons.global = u32::MAX;
+        let err = MemoryEstimate::job(64, 64, 64, &settings, 8).check(8 << 30, 64, 64, &settings).unwrap_err();
+        assert_eq!(err.setting, "render.photons.global");
+        settings.integrator = Integrator::Progressive;
+        settings.photons.pass_photons = u32::MAX;
+        let err = MemoryEstimate::strip(64, 1, &settings, 8).check(8 << 30, 64, 1, &settings).unwrap_err();
+        assert_eq!(err.setting, "render.photons.pass_photons");
+    }
+}
