@@ -583,6 +583,7 @@ mod tests {
                 "diffuse + specular",
             ),
             (Material::Phong { diffuse: 0.5.into(), specular: 0.3.into(), exponent: -1.0 }, "exponent"),
+            (Material::Phong { diffuse: 0.5.into(), specular: 0.3.into(), exponent: 1e30 }, "exponent"),
             (Material::Mirror { reflectance: (-0.1).into() }, "reflectance"),
             (Material::Dielectric { eta: 0.0, tint: 1.0.into() }, "eta"),
             (Material::Dielectric { eta: 1.5, tint: f32::INFINITY.into() }, "tint"),
