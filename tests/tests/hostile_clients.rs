@@ -1,7 +1,7 @@
 //! A worker under a hostile or careless client: doctored frames (a width of 0xFFFFFFFF, a width of 0, a method
 //! without its photons), an overlong build id, uploads that drip a byte at a time or stall next to a normal one,
 //! and a strip that panics. Each is refused with a status that names what was wrong, and afterwards the same
-//! worker renders a strip byte-identical to the one rendered here.
+//! worker renders a strip byte-identical to the one rendered here, its peak memory still small.
 
 #![allow(clippy::unwrap_used)]
 
@@ -166,4 +166,16 @@ async fn hostile_requests_are_refused_and_the_worker_then_renders_a_correct_stri
     let got = render(&mut c, request(&scene_id, prep.encode_frame().unwrap(), (0, 4))).await.unwrap();
     let expected = photon_core::render::render_strip(&prep, 0..4, &|_| {});
     assert_eq!(got, photon_proto::pixels_to_bytes(&expected.pixels));
+
+    // Nothing was allocated from the doctored sizes: the worker's peak resident memory stays small (a width of
+    // 0xFFFFFFFF once asked for 51 GB).
+    if let Ok(status) = std::fs::read_to_string(format!("/proc/{}/status", w.pid())) {
+        let kib: u64 = status
+            .lines()
+            .find_map(|l| l.strip_prefix("VmHWM:"))
+            .and_then(|v| v.trim().trim_end_matches("kB").trim().parse().ok())
+            .unwrap();
+        assert!(kib < 1 << 20, "the worker's peak resident memory is {kib} KiB");
+        eprintln!("worker peak resident memory: {kib} KiB");
+    }
 }
