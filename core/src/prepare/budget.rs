@@ -129,42 +129,73 @@ impl MemoryEstimate {
             return Ok(());
         }
         let parts = [
-            (self.image, "camera.width × camera.height", "pixels"),
-            (self.photon_maps, "render.photons.global", "photon maps"),
-            (self.pass_map, "render.photons.pass_photons", "a progressive pass's photons"),
-            (self.progressive, "camera.width", "progressive statistics"),
-            (self.k_nearest, "render.photons.k", "k-nearest buffers"),
+            (self.image, Part::Image),
+            (self.photon_maps, Part::PhotonMaps),
+            (self.pass_map, Part::PassMap),
+            (self.progressive, Part::Progressive),
+            (self.k_nearest, Part::KNearest),
         ];
-        let (part, setting, what) = parts.iter().copied().max_by_key(|p| p.0).unwrap_or(parts[0]);
+        let (part, largest) = parts.iter().copied().max_by_key(|p| p.0).unwrap_or(parts[0]);
         // The share of the budget the largest part may have, the others staying as they are.
         let room = budget.saturating_sub(needed - part);
-        let scale = room as f64 / part.max(1) as f64;
         let fits = if room == 0 {
             "the other parts alone do not fit".to_owned()
         } else {
-            match what {
-                "pixels" => {
-                    let s = scale.sqrt();
-                    let (w, h) = ((f64::from(width) * s) as u32, (f64::from(height) * s) as u32);
-                    format!("an image of about {w} × {h} pixels would fit")
-                }
-                "photon maps" => {
-                    let paths = (f64::from(settings.photons.global) * scale) as u64;
-                    format!("about {paths} photon paths (global and caustic together) would fit")
-                }
-                "a progressive pass's photons" => {
-                    format!(
-                        "about {} photon paths per pass would fit",
-                        (f64::from(settings.photons.pass_photons) * scale) as u64
-                    )
-                }
-                "progressive statistics" => {
-                    format!("an image about {} pixels wide would fit", (f64::from(width) * scale) as u64)
-                }
-                _ => format!("k = {} would fit", (f64::from(settings.photons.k) * scale) as u64),
-            }
+            largest.fits(room as f64 / part.max(1) as f64, width, height, settings)
         };
+        let (setting, what) = (largest.setting(), largest.what());
         Err(BudgetError { setting, what, part, needed, budget, fits })
+    }
+}
+
+/// The parts of an estimate, each decided by one setting.
+#[derive(Clone, Copy, Debug)]
+enum Part {
+    Image,
+    PhotonMaps,
+    PassMap,
+    Progressive,
+    KNearest,
+}
+
+impl Part {
+    fn setting(self) -> &'static str {
+        match self {
+            Part::Image => "camera.width × camera.height",
+            Part::PhotonMaps => "render.photons.global",
+            Part::PassMap => "render.photons.pass_photons",
+            Part::Progressive => "camera.width",
+            Part::KNearest => "render.photons.k",
+        }
+    }
+
+    fn what(self) -> &'static str {
+        match self {
+            Part::Image => "pixels",
+            Part::PhotonMaps => "photon maps",
+            Part::PassMap => "a progressive pass's photons",
+            Part::Progressive => "progressive statistics",
+            Part::KNearest => "k-nearest buffers",
+        }
+    }
+
+    /// The value of this part's setting that would fit when the part may be `scale` times its size (each part
+    /// grows in proportion to its setting; the image with the square of its scale along each side).
+    fn fits(self, scale: f64, width: u32, height: u32, settings: &RenderSettings) -> String {
+        let times = |v: u32| (f64::from(v) * scale) as u64;
+        match self {
+            Part::Image => {
+                let s = scale.sqrt();
+                let (w, h) = ((f64::from(width) * s) as u32, (f64::from(height) * s) as u32);
+                format!("an image of about {w} × {h} pixels would fit")
+            }
+            Part::PhotonMaps => {
+                format!("about {} photon paths (global and caustic together) would fit", times(settings.photons.global))
+            }
+            Part::PassMap => format!("about {} photon paths per pass would fit", times(settings.photons.pass_photons)),
+            Part::Progressive => format!("an image about {} pixels wide would fit", times(width)),
+            Part::KNearest => format!("k = {} would fit", times(settings.photons.k)),
+        }
     }
 }
 
