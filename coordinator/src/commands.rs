@@ -44,6 +44,7 @@ fn render(args: RenderArgs) -> Result<()> {
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t0 = Instant::now();
     let scene = render_scene(&args)?;
+    fits_in_memory(&scene, args.rows_per_strip)?;
     let resume = args.resume.as_deref().map(Partial::read).transpose()?;
     let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
         (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
@@ -89,6 +90,24 @@ fn render(args: RenderArgs) -> Result<()> {
     let summary =
         Summary { output: &args.output, size: (width, height), settings: &settings, prepare_s, assemble_s, hits };
     println!("{}", summary.line(&outcome));
+    Ok(())
+}
+
+/// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is
+/// allocated; the error names the setting and what would fit. The strips count as rendered here, by the
+/// in-process workers of a render without hosts (the most a render allocates on this machine).
+fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>) -> Result<()> {
+    let Some(budget) = photon_core::prepare::budget::machine_memory() else { return Ok(()) };
+    let (c, r) = (&scene.camera, &scene.render);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    // Progressive photon mapping renders whole-image pass blocks; `--rows-per-strip` is then passes per block.
+    let rows = match r.integrator {
+        Integrator::Progressive => c.height,
+        _ => rows_per_strip.unwrap_or_else(|| crate::scheduler::rows_per_strip_for(c.height, 1)),
+    };
+    let estimate = photon_core::prepare::budget::MemoryEstimate::job(c.width, c.height, rows, r, threads);
+    tracing::info!(bytes = estimate.total(), budget, "memory estimate");
+    estimate.check(budget, c.width, c.height, r).context("the job does not fit this machine's memory")?;
     Ok(())
 }
 
@@ -166,6 +185,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         Setting::Passes(n) => format!("{n} passes of {} photon paths", scene.render.photons.pass_photons),
         _ => format!("{} spp", args.spp),
     };
+    fits_in_memory(&scene, None)?;
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t = runtime()?.block_on(async {

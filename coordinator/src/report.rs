@@ -206,7 +206,8 @@ pub fn progress_bar(show: bool, strips: usize, resumed: usize, units: &str) -> i
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::new(strips as u64);
-    let template = format!("{{spinner}} [{{elapsed_precise}}] {{bar:32}} {{pos}}/{{len}} {units} {{msg}}");
+    let template =
+        format!("{{spinner}} [{{elapsed_precise}}] {{bar:32}} {{pos}}/{{len}} {units}, ~{{eta}} left {{msg}}");
     if let Ok(style) = indicatif::ProgressStyle::with_template(&template) {
         bar.set_style(style);
     }

@@ -11,6 +11,7 @@
 //! aperture = 0.0         # lens radius; 0 is a pinhole
 //! ```
 
+use crate::error::FieldError;
 use crate::math::Ray;
 use crate::math::fmath;
 use crate::scene::CameraSpec;
@@ -75,6 +76,38 @@ impl Camera {
         let l = crate::math::concentric_disk(lens) * self.lens_radius;
         let o = self.eye + l.x * self.right + l.y * self.up;
         Ray::new(o, fmath::normalize(focus_point - o))
+    }
+
+    /// Checks a camera that arrived from elsewhere (a frame blob) as the scene's validation checks the
+    /// `[camera]` it is built from: sizes within the limits, every number finite, the frame's axes unit length.
+    /// Errors name the field under `camera.`.
+    pub fn check(&self) -> Result<(), FieldError> {
+        crate::scene::image_side("camera.width", self.width)?;
+        crate::scene::image_side("camera.height", self.height)?;
+        for (name, v) in [("eye", self.eye), ("right", self.right), ("up", self.up), ("forward", self.forward)] {
+            let unit = name == "eye" || (v.length() - 1.0).abs() < 1e-3;
+            if !v.is_finite() || !unit {
+                return Err(FieldError::new(
+                    format!("camera.{name}"),
+                    format!("expected a finite unit vector, found {v}"),
+                ));
+            }
+        }
+        for (name, v) in [("half_width", self.half_w), ("half_height", self.half_h), ("focus", self.focus)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(FieldError::new(
+                    format!("camera.{name}"),
+                    format!("expected a positive number, found {v}"),
+                ));
+            }
+        }
+        if !(self.lens_radius.is_finite() && self.lens_radius >= 0.0) {
+            return Err(FieldError::new(
+                "camera.aperture",
+                format!("expected a non-negative number, found {}", self.lens_radius),
+            ));
+        }
+        Ok(())
     }
 
     /// The eye position.

@@ -22,6 +22,7 @@ pub mod codec;
 pub mod error;
 pub mod geometry;
 pub mod image_io;
+pub mod input;
 pub mod integrator;
 pub mod light;
 pub mod material;

@@ -485,11 +485,20 @@ fn override_errors_name_the_scene_field() {
     let msg = load(&["render.spp=4", "render.photons.k=-1"]).unwrap_err();
     assert_names(&msg, &["render.photons.k:", "--set render.photons.k=-1", "u32"]);
     let msg = load(&["render.photons.k=1"]).unwrap_err();
-    assert_names(&msg, &["render.photons.k:", "expected at least 2 photons", "--set render.photons.k=1"]);
+    assert_names(&msg, &["render.photons.k:", "expected 2 to 100000 photons", "--set render.photons.k=1"]);
     let msg = load(&["camera.width=0"]).unwrap_err();
     assert_names(&msg, &["camera.width:", "1..=65536", "--set camera.width=0"]);
     let msg = load(&["render.spp"]).unwrap_err();
     assert_names(&msg, &["expected KEY=VALUE"]);
     assert!(load(&["render.spp=3", "render.photons.kernel=box"]).is_ok());
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn camera_coordinates_that_would_overflow_name_their_own_field() {
+    // |look_at − eye|² overflows f32 here: once blamed on `camera.up`.
+    let text = "[camera]\neye = [0.0, 1.0, 3.0e38]\nlook_at = [0.0, 1.0, 0.0]\n";
+    assert_names(&parse_err(text), &[":2:", "camera.eye:", "within ±1e18"]);
+    let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nup = [0.0, 1.0e30, 0.0]\n";
+    assert_names(&parse_err(text), &["camera.up:", "within ±1e18"]);
 }

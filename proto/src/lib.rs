@@ -124,6 +124,26 @@ pub fn read_token(path: &std::path::Path) -> Result<String, TokenError> {
     Ok(token.to_owned())
 }
 
+/// At most [`QUOTE_CHARS`] characters of a received value, escaped (control characters and quotes as Rust
+/// escapes) and in backquotes, with the length of the rest: what a status or an error may echo of what a peer
+/// sent, so that a megabyte-long value cannot blow the 16 KiB limit of gRPC's metadata, nor a log line.
+pub fn quote(value: &str) -> String {
+    let mut out = String::from("`");
+    let mut chars = value.chars();
+    for c in chars.by_ref().take(QUOTE_CHARS) {
+        out.extend(c.escape_debug());
+    }
+    out.push('`');
+    let rest = chars.as_str().len();
+    if rest > 0 {
+        out.push_str(&format!("… ({rest} more bytes)"));
+    }
+    out
+}
+
+/// How many characters of a received value [`quote`] shows.
+pub const QUOTE_CHARS: usize = 64;
+
 /// Compares two tokens in time that does not depend on where they differ.
 pub fn tokens_match(a: &str, b: &str) -> bool {
     a.len() == b.len() && a.bytes().zip(b.bytes()).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
@@ -171,9 +191,15 @@ pub mod transport {
         tonic::transport::server::TcpIncoming::from(listener).with_nodelay(Some(true))
     }
 
+    /// Calls one connection may have in progress at once; more wait. A coordinator needs a few strips, an upload
+    /// and a heartbeat at a time: the cap keeps one peer from opening thousands of calls.
+    pub const CALLS_PER_CONNECTION: usize = 32;
+
     /// A server builder with the same settings.
     pub fn server() -> tonic::transport::Server {
         tonic::transport::Server::builder()
+            .concurrency_limit_per_connection(CALLS_PER_CONNECTION)
+            .max_concurrent_streams(Some(2 * CALLS_PER_CONNECTION as u32))
             .tcp_nodelay(true)
             .http2_keepalive_interval(Some(KEEPALIVE_INTERVAL))
             .http2_keepalive_timeout(Some(KEEPALIVE_TIMEOUT))
@@ -183,6 +209,15 @@ pub mod transport {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn quotes_are_short_and_escaped() {
+        assert_eq!(quote("abc"), "`abc`");
+        assert_eq!(quote("a\nb\"\u{7}"), "`a\\nb\\\"\\u{7}`");
+        let long = "x".repeat(1 << 20);
+        let q = quote(&long);
+        assert!(q.len() < 100 && q.ends_with(&format!("({} more bytes)", (1 << 20) - QUOTE_CHARS)), "{q}");
+    }
 
     #[test]
     fn blob_ids_are_hex_blake3() {

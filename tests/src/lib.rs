@@ -87,6 +87,11 @@ pub struct WorkerProcess {
 }
 
 impl WorkerProcess {
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Starts a worker on a free loopback port with extra arguments; panics if it does not report its address
     /// within 20 s.
     pub fn start(args: &[&str]) -> Self {

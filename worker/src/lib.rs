@@ -9,8 +9,13 @@
 //! Everything a peer sends is checked before it is used, and a bad request gets a gRPC status that says what
 //! was wrong; the worker keeps serving: another protocol or build (`FAILED_PRECONDITION`), a wrong or missing
 //! token (`UNAUTHENTICATED`), a blob larger than [`Config::max_blob_bytes`] (`RESOURCE_EXHAUSTED`), a truncated
-//! or overlong upload (`INVALID_ARGUMENT`), bytes that do not hash to their id (`DATA_LOSS`), an unknown blob
-//! (`NOT_FOUND`), rows outside the image (`OUT_OF_RANGE`), blobs that do not decode (`INVALID_ARGUMENT`).
+//! or overlong upload (`INVALID_ARGUMENT`), bytes that do not hash to their id (`DATA_LOSS`), an upload that
+//! stalls or crawls (`DEADLINE_EXCEEDED`, [`Config::upload_idle`], [`Config::upload_min_rate`]), an unknown
+//! blob (`NOT_FOUND`), rows outside the image (`OUT_OF_RANGE`), a frame whose sizes or settings are out of range
+//! or whose method lacks its photons blob (`INVALID_ARGUMENT`, naming the field: [`check_strip_request`]), a
+//! strip that would not fit the worker's memory (`RESOURCE_EXHAUSTED`), blobs that do not decode
+//! (`INVALID_ARGUMENT`). A status echoes at most a short, escaped prefix of a received value
+//! ([`photon_proto::quote`]). A panic while rendering (a bug) fails that strip with `INTERNAL`, not the worker.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -19,17 +24,19 @@ pub mod disk_store;
 
 use cache::BlobCache;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::blobs::Frame;
+use photon_core::prepare::budget::MemoryEstimate;
 use photon_core::render::progressive::{MAX_BLOCK_PASSES, render_passes};
 use photon_core::render::render_strip_with;
 use photon_core::scene::Integrator;
 use photon_proto::pb::render_server::{Render, RenderServer};
 use photon_proto::pb::{self, strip_event::Event};
-use photon_proto::{MAX_CHUNK, MAX_MESSAGE};
+use photon_proto::{MAX_CHUNK, MAX_MESSAGE, quote};
 use std::future::Future;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use tokio::sync::{Semaphore, mpsc};
 use tokio_stream::wrappers::ReceiverStream;
 use tonic::{Request, Response, Status, Streaming};
@@ -49,6 +56,17 @@ pub struct Config {
     pub disk_cache: Option<(PathBuf, u64)>,
     /// The largest blob accepted, in bytes.
     pub max_blob_bytes: u64,
+    /// Bytes that uploads in progress may hold in memory together; an upload's chunks count as they arrive,
+    /// so a slow client holds only what it has sent.
+    pub upload_budget_bytes: u64,
+    /// The longest wait for an upload's next chunk.
+    pub upload_idle: Duration,
+    /// The slowest upload accepted, in bytes per second: a blob of `size` bytes must arrive within
+    /// `upload_idle + size / upload_min_rate`.
+    pub upload_min_rate: u64,
+    /// Memory one strip's buffers may take, in bytes (default: half the machine's memory); a larger strip is
+    /// refused before it allocates ([`MemoryEstimate::strip`]).
+    pub strip_memory_bytes: u64,
     /// Strip requests that may wait behind the one rendering.
     pub max_queue: usize,
     /// The build id this worker claims (the real one unless a test pretends otherwise).
@@ -69,6 +87,10 @@ impl Default for Config {
             memory_cache_bytes: 4 << 30,
             disk_cache: None,
             max_blob_bytes: 4 << 30,
+            upload_budget_bytes: 8 << 30,
+            upload_idle: Duration::from_secs(30),
+            upload_min_rate: 256 << 10,
+            strip_memory_bytes: if memory_bytes() == 0 { u64::MAX } else { memory_bytes() / 2 },
             max_queue: 4,
             build_id: photon_proto::BUILD_ID.to_owned(),
             math_mode: photon_core::math::fmath::MODE.to_owned(),
@@ -91,6 +113,8 @@ pub enum Fault {
     /// Render a NaN into the first pixel of every strip before computing the checksum, as a bug in an
     /// integrator would.
     NanPixels,
+    /// Panic while rendering the first `n` strips, as a bug would.
+    Panic(u32),
 }
 
 /// The decoded scene of one job.
@@ -108,9 +132,10 @@ pub struct Worker {
     jobs: Arc<Mutex<Vec<Arc<Job>>>>,
     /// One strip renders at a time: it has all the cores.
     render_slot: Arc<Semaphore>,
-    /// Uploads in progress at once (each may hold up to `max_blob_bytes`).
-    upload_slots: Arc<Semaphore>,
+    /// Bytes that uploads in progress hold ([`Config::upload_budget_bytes`]).
+    upload_bytes: Arc<Semaphore>,
     waiting: Arc<AtomicUsize>,
+    /// Strips left to corrupt ([`Fault::CorruptPixels`]) or to panic in ([`Fault::Panic`]).
     corrupt_left: Arc<AtomicU32>,
 }
 
@@ -137,15 +162,17 @@ impl Worker {
         let pool = pool.build().map_err(WorkerError::Threads)?;
         let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
         let corrupt = match config.fault {
-            Fault::CorruptPixels(n) => n,
+            Fault::CorruptPixels(n) | Fault::Panic(n) => n,
             Fault::None | Fault::Delay(_) | Fault::NanPixels => 0,
         };
+        let upload_budget =
+            usize::try_from(config.upload_budget_bytes).unwrap_or(usize::MAX).min(Semaphore::MAX_PERMITS);
         Ok(Self {
             pool: Arc::new(pool),
             blobs: Arc::new(blobs),
             jobs: Arc::new(Mutex::new(Vec::new())),
             render_slot: Arc::new(Semaphore::new(1)),
-            upload_slots: Arc::new(Semaphore::new(2)),
+            upload_bytes: Arc::new(Semaphore::new(upload_budget)),
             waiting: Arc::new(AtomicUsize::new(0)),
             corrupt_left: Arc::new(AtomicU32::new(corrupt)),
             config,
@@ -190,13 +217,9 @@ pub async fn serve(
         .await
 }
 
-/// Physical memory in bytes from /proc/meminfo, 0 where there is none.
+/// Physical memory in bytes, 0 where it is not known.
 fn memory_bytes() -> u64 {
-    let Ok(text) = std::fs::read_to_string("/proc/meminfo") else { return 0 };
-    text.lines()
-        .find_map(|l| l.strip_prefix("MemTotal:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-        .map_or(0, |kib| kib * 1024)
+    photon_core::prepare::budget::machine_memory().unwrap_or(0)
 }
 
 fn hostname() -> String {
@@ -204,6 +227,111 @@ fn hostname() -> String {
         .or_else(|_| std::fs::read_to_string("/etc/hostname"))
         .map(|s| s.trim().to_owned())
         .unwrap_or_default()
+}
+
+/// The next chunk of an upload, waiting at most `idle` for it and never past `deadline`.
+async fn next_chunk(
+    stream: &mut Streaming<pb::BlobChunk>,
+    deadline: Instant,
+    idle: Duration,
+) -> Result<Option<pb::BlobChunk>, Status> {
+    let now = Instant::now();
+    let wait = idle.min(deadline.saturating_duration_since(now));
+    match tokio::time::timeout(wait, stream.message()).await {
+        Ok(chunk) => chunk,
+        Err(_) if wait < idle => Err(Status::deadline_exceeded(
+            "the upload is too slow: a blob must arrive within the idle time plus its size over the minimum rate \
+             (photon-worker --upload-idle-s, --upload-min-kib-s)",
+        )),
+        Err(_) => Err(Status::deadline_exceeded(format!(
+            "no chunk of the upload for {} s (photon-worker --upload-idle-s)",
+            idle.as_secs_f64()
+        ))),
+    }
+}
+
+/// What a strip request is checked against.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Bytes one strip's buffers may take ([`Config::strip_memory_bytes`]).
+    pub strip_memory_bytes: u64,
+    /// The worker's render threads (each keeps its own k-nearest buffer).
+    pub threads: usize,
+}
+
+/// The longest frame blob accepted (a camera and render settings take a few hundred bytes).
+pub const MAX_FRAME_BYTES: usize = 64 << 10;
+
+/// Checks a strip request before anything is looked up or allocated from it: blob ids, the frame (decoded and
+/// checked as the scene's validation checks a scene: sizes, finite camera, settings in range), the rows against
+/// the frame's image, the method against the blobs present, and the strip's memory against `limits`. Returns the
+/// decoded frame. A refusal names the field and quotes at most a short prefix of a received value.
+pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Frame, Status> {
+    if !photon_proto::is_blob_id(&r.scene_blob) {
+        return Err(Status::invalid_argument(format!(
+            "scene_blob: {} is not a blob id (64 lowercase hex digits)",
+            quote(&r.scene_blob)
+        )));
+    }
+    if !r.photons_blob.is_empty() && !photon_proto::is_blob_id(&r.photons_blob) {
+        return Err(Status::invalid_argument(format!(
+            "photons_blob: {} is not a blob id (64 lowercase hex digits, or empty)",
+            quote(&r.photons_blob)
+        )));
+    }
+    if r.row_start >= r.row_end {
+        return Err(Status::out_of_range(format!("empty or reversed rows {}..{}", r.row_start, r.row_end)));
+    }
+    let frame = Frame::decode(&r.frame, MAX_FRAME_BYTES).map_err(|e| Status::invalid_argument(e.to_string()))?;
+    let (width, height) = (frame.camera.width, frame.camera.height);
+    if r.row_end > height {
+        return Err(Status::out_of_range(format!(
+            "rows {}..{} are outside the image's {height} rows",
+            r.row_start, r.row_end
+        )));
+    }
+    let method = frame.settings.integrator;
+    if method.needs_photon_maps() == r.photons_blob.is_empty() {
+        let (needs, sent) =
+            if r.photons_blob.is_empty() { ("needs", "none was sent") } else { ("needs no", "one was sent") };
+        return Err(Status::invalid_argument(format!(
+            "photons_blob: the frame's method `{method}` {needs} photon maps, and {sent}"
+        )));
+    }
+    check_passes(r, &frame.settings)?;
+    let estimate = MemoryEstimate::strip(width, r.row_end - r.row_start, &frame.settings, limits.threads);
+    estimate
+        .check(limits.strip_memory_bytes, width, r.row_end - r.row_start, &frame.settings)
+        .map_err(|e| Status::resource_exhausted(format!("this worker cannot render the strip: {e}")))?;
+    Ok(frame)
+}
+
+impl Worker {
+    /// What this worker checks strip requests against.
+    pub fn limits(&self) -> Limits {
+        Limits { strip_memory_bytes: self.config.strip_memory_bytes, threads: self.threads() }
+    }
+
+    /// Adds `n` bytes to an upload's reservation from the upload budget.
+    fn reserve_upload(&self, reserved: &mut Option<tokio::sync::OwnedSemaphorePermit>, n: usize) -> Result<(), Status> {
+        let Ok(n) = u32::try_from(n) else {
+            return Err(Status::invalid_argument("a chunk larger than 4 GiB"));
+        };
+        if n == 0 {
+            return Ok(());
+        }
+        let permit = self.upload_bytes.clone().try_acquire_many_owned(n).map_err(|_| {
+            Status::resource_exhausted(format!(
+                "uploads in progress hold this worker's upload memory ({} bytes); try again when they finish",
+                self.config.upload_budget_bytes
+            ))
+        })?;
+        match reserved {
+            Some(r) => r.merge(permit),
+            None => *reserved = Some(permit),
+        }
+        Ok(())
+    }
 }
 
 #[tonic::async_trait]
@@ -221,8 +349,8 @@ impl Render for Worker {
             return Err(Status::failed_precondition(format!(
                 "build {} (photon {}) is not this worker's build {} (photon {}): build coordinator and workers \
                  from the same code",
-                r.build_id,
-                r.crate_version,
+                quote(&r.build_id),
+                quote(&r.crate_version),
                 self.config.build_id,
                 photon_proto::CRATE_VERSION
             )));
@@ -253,7 +381,10 @@ impl Render for Worker {
         let mut missing = Vec::new();
         for id in ids {
             if !photon_proto::is_blob_id(&id) {
-                return Err(Status::invalid_argument(format!("`{id}` is not a blob id (64 lowercase hex digits)")));
+                return Err(Status::invalid_argument(format!(
+                    "{} is not a blob id (64 lowercase hex digits)",
+                    quote(&id)
+                )));
             }
             if !self.blobs.contains(&id) {
                 missing.push(id);
@@ -264,7 +395,8 @@ impl Render for Worker {
 
     async fn put_blob(&self, request: Request<Streaming<pb::BlobChunk>>) -> Result<Response<pb::PutBlobReply>, Status> {
         let mut stream = request.into_inner();
-        let Some(first) = stream.message().await? else {
+        let idle = self.config.upload_idle;
+        let Some(first) = next_chunk(&mut stream, Instant::now() + idle, idle).await? else {
             return Err(Status::invalid_argument("empty upload: the first chunk must carry the blob's header"));
         };
         let Some(header) = first.header else {
@@ -272,8 +404,8 @@ impl Render for Worker {
         };
         if !photon_proto::is_blob_id(&header.id) {
             return Err(Status::invalid_argument(format!(
-                "`{}` is not a blob id (64 lowercase hex digits)",
-                header.id
+                "{} is not a blob id (64 lowercase hex digits)",
+                quote(&header.id)
             )));
         }
         if header.size > self.config.max_blob_bytes {
@@ -285,10 +417,17 @@ impl Render for Worker {
         if self.blobs.contains(&header.id) {
             return Ok(Response::new(pb::PutBlobReply { stored: 0 }));
         }
-        let _slot = self.upload_slots.acquire().await.map_err(|_| Status::unavailable("worker shutting down"))?;
+        // The whole upload must keep a minimum rate, so a client that sends a byte now and then (never idle
+        // long enough for the idle timeout) cannot keep its bytes reserved for ever.
+        let deadline = Instant::now()
+            + idle
+            + Duration::from_secs_f64(header.size as f64 / self.config.upload_min_rate.max(1) as f64);
         let size = header.size as usize;
-        // Grow with what arrives rather than trusting the announced size with one allocation.
-        let mut bytes: Vec<u8> = Vec::with_capacity(size.min(64 << 20));
+        // Grow with what arrives rather than trusting the announced size with one allocation; every chunk's bytes
+        // are reserved from the upload budget as they arrive, and nothing is held while waiting for the network
+        // but the bytes already received.
+        let mut bytes: Vec<u8> = Vec::new();
+        let mut reserved: Option<tokio::sync::OwnedSemaphorePermit> = None;
         let mut hasher = photon_proto::Hasher::new();
         let mut chunk = first.data;
         loop {
@@ -304,9 +443,10 @@ impl Render for Worker {
                     header.id
                 )));
             }
+            self.reserve_upload(&mut reserved, chunk.len())?;
             hasher.update(&chunk);
             bytes.extend_from_slice(&chunk);
-            match stream.message().await? {
+            match next_chunk(&mut stream, deadline, idle).await? {
                 Some(next) if next.header.is_some() => {
                     return Err(Status::invalid_argument("only the first chunk of an upload carries a header"));
                 }
@@ -337,18 +477,12 @@ impl Render for Worker {
         request: Request<pb::StripRequest>,
     ) -> Result<Response<Self::RenderStripStream>, Status> {
         let r = request.into_inner();
-        let mut blob_ids = vec![&r.scene_blob];
-        if !r.photons_blob.is_empty() {
-            blob_ids.push(&r.photons_blob);
-        }
-        for id in &blob_ids {
-            if !self.blobs.contains(id) {
+        for id in [&r.scene_blob, &r.photons_blob] {
+            if photon_proto::is_blob_id(id) && !self.blobs.contains(id) {
                 return Err(Status::not_found(format!("blob {id} is unknown here: upload it with PutBlob first")));
             }
         }
-        if r.row_start >= r.row_end {
-            return Err(Status::out_of_range(format!("empty or reversed rows {}..{}", r.row_start, r.row_end)));
-        }
+        check_strip_request(&r, &self.limits())?;
         if self.waiting.load(Ordering::Relaxed) >= self.config.max_queue {
             return Err(Status::resource_exhausted(format!(
                 "{} strips already queued here; send fewer at once",
@@ -367,6 +501,7 @@ impl Render for Worker {
                 _ => std::time::Duration::ZERO,
             },
             nan_pixels: matches!(self.config.fault, Fault::NanPixels),
+            panic: matches!(self.config.fault, Fault::Panic(_)),
         };
         let slot = self.render_slot.clone();
         let waiting = self.waiting.clone();
@@ -378,7 +513,7 @@ impl Render for Worker {
                 return;
             }
             let render_tx = tx.clone();
-            let outcome = tokio::task::spawn_blocking(move || ctx.render(&r, &render_tx)).await;
+            let outcome = tokio::task::spawn_blocking(move || ctx.render_guarded(&r, &render_tx)).await;
             let events = match outcome {
                 Ok(Ok(events)) => events,
                 Ok(Err(status)) => vec![Err(status)],
@@ -403,6 +538,8 @@ struct StripContext {
     delay: std::time::Duration,
     /// Test only: a NaN in every strip ([`Fault::NanPixels`]).
     nan_pixels: bool,
+    /// Test only: panic in the first strips ([`Fault::Panic`], counted by `corrupt_left`).
+    panic: bool,
 }
 
 type Event_ = Result<pb::StripEvent, Status>;
@@ -411,7 +548,8 @@ impl StripContext {
     /// The job of a request: from the cache, or decoded from its blobs; with the seconds spent decoding.
     fn job(&self, r: &pb::StripRequest) -> Result<(Arc<Job>, f64), Status> {
         let key = [r.scene_blob.clone(), r.photons_blob.clone(), photon_proto::blob_id(&r.frame)];
-        let mut jobs = self.jobs.lock().map_err(|_| Status::internal("job cache poisoned"))?;
+        // A panic while the lock was held (a bug, caught by `render_guarded`) leaves a list of whole jobs.
+        let mut jobs = self.jobs.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some(i) = jobs.iter().position(|j| j.key == key) {
             let job = jobs.remove(i);
             jobs.push(job.clone());
@@ -425,12 +563,38 @@ impl StripContext {
         let photons = if r.photons_blob.is_empty() { None } else { Some(blob(&r.photons_blob)?) };
         let prep = Prepared::from_blobs(&scene, photons.as_deref().map(Vec::as_slice), &r.frame, usize::MAX)
             .map_err(|e| Status::invalid_argument(format!("the job's blobs do not decode: {e}")))?;
+        if prep.settings.integrator.needs_photon_maps() && prep.photons.is_none() {
+            return Err(Status::invalid_argument(format!(
+                "the method `{}` needs photon maps and the photons blob holds none",
+                prep.settings.integrator
+            )));
+        }
         let job = Arc::new(Job { key, prep });
         jobs.push(job.clone());
         if jobs.len() > Worker::JOBS_KEPT {
             jobs.remove(0);
         }
         Ok((job, t0.elapsed().as_secs_f64()))
+    }
+
+    /// [`StripContext::render`], with a panic (a bug: every request was checked before) turned into an
+    /// `INTERNAL` status for this strip, so the worker keeps serving the others.
+    fn render_guarded(&self, r: &pb::StripRequest, tx: &mpsc::Sender<Event_>) -> Result<Vec<Event_>, Status> {
+        std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| self.render(r, tx))).unwrap_or_else(|panic| {
+            let what = panic
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| panic.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            tracing::error!(strip = r.strip, "the render panicked: {what}");
+            Err(Status::internal(format!(
+                "strip {} (rows {}..{}) panicked on this worker: {}; this is a bug in photon",
+                r.strip,
+                r.row_start,
+                r.row_end,
+                quote(&what)
+            )))
+        })
     }
 
     /// Renders the strip, sending progress on `tx` as it goes; returns the pixel and summary events.
@@ -443,8 +607,12 @@ impl StripContext {
                 r.row_start, r.row_end
             )));
         }
-        check_passes(r, &job.prep)?;
         tracing::info!(strip = r.strip, attempt = r.attempt, rows = ?(r.row_start..r.row_end), "rendering strip");
+        if self.panic
+            && self.corrupt_left.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1)).is_ok()
+        {
+            panic!("fault injection: a panic while rendering strip {}", r.strip);
+        }
         if !self.delay.is_zero() {
             // Test-only slowness, in small steps so a cancelled strip stops waiting.
             let end = Instant::now() + self.delay;
@@ -496,7 +664,11 @@ impl StripContext {
         summary.render_seconds = t0.elapsed().as_secs_f64();
         summary.load_seconds = load_seconds;
         let checksum = photon_proto::checksum(&bytes).to_vec();
-        let corrupt = self.corrupt_left.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1));
+        let corrupt = if self.panic {
+            Err(0)
+        } else {
+            self.corrupt_left.fetch_update(Ordering::Relaxed, Ordering::Relaxed, |n| n.checked_sub(1))
+        };
         if corrupt.is_ok() && bytes.len() >= 4 {
             tracing::warn!(strip = r.strip, "fault injection: corrupting a pixel after the checksum");
             bytes[0] ^= 0x40;
@@ -518,10 +690,10 @@ impl StripContext {
     }
 }
 
-/// Checks a request's passes against its job: a pass block for progressive photon mapping, none otherwise.
-fn check_passes(r: &pb::StripRequest, prep: &Prepared) -> Result<(), Status> {
-    let progressive = prep.settings.integrator == Integrator::Progressive;
-    let total = prep.settings.photons.passes;
+/// Checks a request's passes against its frame: a pass block for progressive photon mapping, none otherwise.
+fn check_passes(r: &pb::StripRequest, settings: &photon_core::scene::RenderSettings) -> Result<(), Status> {
+    let progressive = settings.integrator == Integrator::Progressive;
+    let total = settings.photons.passes;
     let (start, end) = (r.pass_start, r.pass_end);
     if !progressive {
         if (start, end) != (0, 0) {

@@ -39,6 +39,13 @@ struct Cli {
     /// The largest blob accepted, in MiB.
     #[arg(long, default_value_t = 4096)]
     max_blob_mib: u64,
+    /// The longest wait for the next chunk of an upload, in seconds.
+    #[arg(long, default_value_t = 30.0)]
+    upload_idle_s: f64,
+    /// The slowest upload accepted, in KiB per second: a blob must arrive within --upload-idle-s plus its size
+    /// at this rate.
+    #[arg(long, default_value_t = 256)]
+    upload_min_kib_s: u64,
     /// Test only: claim this build id instead of the real one.
     #[arg(long, hide = true)]
     test_build_id: Option<String>,
@@ -51,6 +58,9 @@ struct Cli {
     /// Test only: render a NaN into every strip before its checksum, as a bug in an integrator would.
     #[arg(long, hide = true)]
     test_nan_strips: bool,
+    /// Test only: panic while rendering each of the first N strips, as a bug would.
+    #[arg(long, hide = true, value_name = "N")]
+    test_panic_strips: Option<u32>,
     /// Test only: wait MS milliseconds before each strip, like a much slower machine.
     #[arg(long, hide = true, value_name = "MS")]
     test_delay_ms: Option<u64>,
@@ -74,6 +84,12 @@ fn run(cli: Cli) -> Result<()> {
     if cli.threads == Some(0) {
         bail!("--threads must be at least 1");
     }
+    if !(cli.upload_idle_s.is_finite() && cli.upload_idle_s > 0.0 && cli.upload_idle_s <= 86_400.0) {
+        bail!("--upload-idle-s must be a number of seconds in (0, 86400], found {}", cli.upload_idle_s);
+    }
+    if cli.upload_min_kib_s == 0 {
+        bail!("--upload-min-kib-s must be at least 1");
+    }
     let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose()?;
     let read =
         |p: &PathBuf, what: &str| std::fs::read(p).with_context(|| format!("reading the {what} {}", p.display()));
@@ -88,6 +104,9 @@ fn run(cli: Cli) -> Result<()> {
         memory_cache_bytes: cli.cache_mib << 20,
         disk_cache: cli.cache_dir.map(|d| (d, cli.cache_dir_mib << 20)),
         max_blob_bytes: cli.max_blob_mib << 20,
+        upload_budget_bytes: (2 * cli.max_blob_mib) << 20,
+        upload_idle: std::time::Duration::from_secs_f64(cli.upload_idle_s),
+        upload_min_rate: cli.upload_min_kib_s << 10,
         ..Config::default()
     };
     if let Some(id) = cli.test_build_id {
@@ -101,6 +120,9 @@ fn run(cli: Cli) -> Result<()> {
     }
     if cli.test_nan_strips {
         config.fault = Fault::NanPixels;
+    }
+    if let Some(n) = cli.test_panic_strips {
+        config.fault = Fault::Panic(n);
     }
     if let Some(ms) = cli.test_delay_ms {
         config.fault = Fault::Delay(ms);

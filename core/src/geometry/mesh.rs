@@ -10,9 +10,13 @@
 //! Polygons are triangulated by ear clipping in their plane, so concave faces keep their shape; a polygon whose
 //! vertices leave its plane is warned about with its file and line. A `#` starts a comment on any line. Normals
 //! and UVs are kept when the file has them, and smooth (area-weighted) vertex normals are computed when it does
-//! not. The OBJ's own materials are ignored. Every parse error names its line.
+//! not. The OBJ's own materials are ignored (`mtllib` and `usemtl` lines are skipped, the `.mtl` is never
+//! read). Bytes that are not UTF-8 (a Latin-1 comment or group name) are read as U+FFFD. Only a regular file is
+//! read, of at most `[limits] mesh_mib`. Every parse error names its line and quotes at most
+//! [`crate::input::EXCERPT_CHARS`] characters of it.
 
 use crate::geometry::MeshShading;
+use crate::input::excerpt;
 use crate::math::fmath;
 use glam::{Affine3A, Vec3, Vec3A};
 use std::path::{Path, PathBuf};
@@ -20,13 +24,13 @@ use std::path::{Path, PathBuf};
 /// Why a mesh could not be loaded; names the file and, where known, the line.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
-    /// The file could not be opened or read.
+    /// The file could not be opened or read, is not a regular file, or is too large.
     #[error("{file}: cannot read the mesh: {source}")]
     Io {
         /// The mesh file.
         file: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        source: crate::input::InputError,
     },
     /// The file is not a valid OBJ.
     #[error("{file}{}: malformed OBJ: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
@@ -74,10 +78,18 @@ impl Default for Normals {
     }
 }
 
-/// Loads an OBJ file and places it in the world with `world_from_object`.
-pub fn load_obj(file: &Path, world_from_object: &Affine3A, normals: Normals) -> Result<MeshData, MeshError> {
-    let text = std::fs::read_to_string(file).map_err(|source| MeshError::Io { file: file.into(), source })?;
-    parse_obj(&text, file, world_from_object, normals)
+/// Loads an OBJ file of at most `limit` bytes and places it in the world with `world_from_object`.
+pub fn load_obj(
+    file: &Path,
+    world_from_object: &Affine3A,
+    normals: Normals,
+    limit: u64,
+) -> Result<MeshData, MeshError> {
+    let bytes = crate::input::read_regular(file, limit, "limits.mesh_mib in the scene")
+        .map_err(|source| MeshError::Io { file: file.into(), source })?;
+    // Lossy: a byte that is not UTF-8 sits in a comment or a name, both unused; in a number it fails that
+    // line's check below, with its line.
+    parse_obj(&String::from_utf8_lossy(&bytes), file, world_from_object, normals)
 }
 
 /// Parses OBJ text; `file` names it in errors and warnings.
@@ -257,11 +269,15 @@ fn crease_normals(faces: &[[Vec3; 3]], corners: &[[u32; 3]], positions: usize, c
         .collect()
 }
 
-/// The text with everything from a `#` to the end of its line removed; the lines stay where they were.
+/// The text with everything from a `#` to the end of its line removed, and the material statements (`mtllib`,
+/// `usemtl`: OBJ materials are not used) blanked; the lines stay where they were.
 fn strip_comments(text: &str) -> String {
     let mut out = String::with_capacity(text.len());
     for line in text.lines() {
-        out.push_str(line.split('#').next().unwrap_or(""));
+        let code = line.split('#').next().unwrap_or("");
+        if !matches!(code.split_whitespace().next(), Some("mtllib" | "usemtl")) {
+            out.push_str(code);
+        }
         out.push('\n');
     }
     out
@@ -396,11 +412,11 @@ fn first_bad_line(text: &str) -> Option<(usize, String)> {
         let numbers = |min: usize, max: usize, what: &str| {
             if rest.len() < min || rest.len() > max || rest.iter().any(|w| w.parse::<f32>().is_err()) {
                 let count = if min == max { format!("{min}") } else { format!("{min} to {max}") };
-                Some(format!("`{tag}` needs {count} numbers ({what}), found `{}`", rest.join(" ")))
+                Some(format!("`{tag}` needs {count} numbers ({what}), found `{}`", excerpt(&rest.join(" "))))
             } else {
                 // `nan` and `inf` parse as numbers: name them here, where the line is known.
                 let not_finite = rest.iter().find(|w| !w.parse::<f32>().is_ok_and(f32::is_finite));
-                not_finite.map(|w| format!("`{tag}`: `{w}` is not finite"))
+                not_finite.map(|w| format!("`{tag}`: `{}` is not finite", excerpt(w)))
             }
         };
         let error = match tag {
@@ -437,13 +453,14 @@ fn first_bad_line(text: &str) -> Option<(usize, String)> {
 fn face_vertex_error(word: &str, counts: [i64; 3]) -> Option<String> {
     const KINDS: [&str; 3] = ["vertex", "texture coordinate", "normal"];
     let parts: Vec<&str> = word.split('/').collect();
+    let shown = excerpt(word);
     if parts.len() > 3 {
-        return Some(format!("face vertex `{word}` has more than three parts"));
+        return Some(format!("face vertex `{shown}` has more than three parts"));
     }
     for (k, part) in parts.iter().enumerate() {
         if part.is_empty() {
             if k == 0 {
-                return Some(format!("face vertex `{word}` has no position index"));
+                return Some(format!("face vertex `{shown}` has no position index"));
             }
             continue;
         }
@@ -452,10 +469,10 @@ fn face_vertex_error(word: &str, counts: [i64; 3]) -> Option<String> {
             Ok(ix) => {
                 let (kind, count) = (KINDS[k], counts[k]);
                 return Some(format!(
-                    "face vertex `{word}`: {kind} index {ix} is out of bounds (1 to {count}, or -1 to -{count})"
+                    "face vertex `{shown}`: {kind} index {ix} is out of bounds (1 to {count}, or -1 to -{count})"
                 ));
             }
-            Err(_) => return Some(format!("face vertex `{word}`: `{part}` is not an index")),
+            Err(_) => return Some(format!("face vertex `{shown}`: `{}` is not an index", excerpt(part))),
         }
     }
     None

@@ -34,7 +34,8 @@
 //! - `lambert`: ideal diffuse. `albedo` (default 0.8).
 //! - `phong`: modified Phong (Lafortune & Willems 1994), `f = kd/π + ks·(n+2)/(2π)·cos^n α` with α the angle
 //!   between the incident direction and the mirror direction. `diffuse` = kd (default 0.5), `specular` = ks
-//!   (default 0.3), `exponent` = n ≥ 0 (default 20). Energy conserving, so `diffuse + specular ≤ 1` per channel.
+//!   (default 0.3), `exponent` = n from 0 to 10,000 (default 20; [`MAX_PHONG_EXPONENT`]). Energy conserving, so
+//!   `diffuse + specular ≤ 1` per channel.
 //! - `mirror`: perfect specular reflection. `reflectance` (default 1).
 //! - `dielectric`: smooth glass with exact unpolarised Fresnel reflection, refraction and total internal
 //!   reflection. `eta`: index of refraction of the inside (the side the surface normal points away from) over
@@ -327,6 +328,11 @@ impl Default for Material {
     }
 }
 
+/// The largest Phong exponent. Its lobe is already under a degree wide (cosⁿα = ½ at α ≈ √(2 ln 2 / n) ≈ 0.7°);
+/// far beyond it the f32 cosine near 1 is too coarse for the lobe, whose peak `(n+2)/(2π)` then turns a few
+/// rays into huge pixel values instead of a reflection.
+pub const MAX_PHONG_EXPONENT: f32 = 10_000.0;
+
 impl Material {
     /// Checks every parameter's range. The error names the parameter (`albedo`); the scene loader places it
     /// under the material's path.
@@ -336,8 +342,14 @@ impl Material {
             Material::Phong { diffuse, specular, exponent } => {
                 diffuse.validate_reflectance("diffuse")?;
                 specular.validate_reflectance("specular")?;
-                if !(exponent.is_finite() && *exponent >= 0.0) {
-                    return Err(FieldError::new("exponent", format!("expected a finite number ≥ 0, got {exponent}")));
+                if !(exponent.is_finite() && (0.0..=MAX_PHONG_EXPONENT).contains(exponent)) {
+                    return Err(FieldError::new(
+                        "exponent",
+                        format!(
+                            "expected a number from 0 to {MAX_PHONG_EXPONENT}, got {exponent} (a sharper lobe is a \
+                             mirror: use type = \"mirror\", or a mix)"
+                        ),
+                    ));
                 }
                 match (diffuse, specular) {
                     (Texture::Constant(kd), Texture::Constant(ks)) => {
@@ -571,6 +583,7 @@ mod tests {
                 "diffuse + specular",
             ),
             (Material::Phong { diffuse: 0.5.into(), specular: 0.3.into(), exponent: -1.0 }, "exponent"),
+            (Material::Phong { diffuse: 0.5.into(), specular: 0.3.into(), exponent: 1e30 }, "exponent"),
             (Material::Mirror { reflectance: (-0.1).into() }, "reflectance"),
             (Material::Dielectric { eta: 0.0, tint: 1.0.into() }, "eta"),
             (Material::Dielectric { eta: 1.5, tint: f32::INFINITY.into() }, "tint"),

@@ -5,6 +5,7 @@
 use super::Prepared;
 use crate::camera::Camera;
 use crate::codec::{self, CodecError};
+use crate::error::FieldError;
 use crate::geometry::Geometry;
 use crate::light::LightSet;
 use crate::material::Material;
@@ -33,10 +34,36 @@ struct FrameRef<'a> {
     settings: &'a RenderSettings,
 }
 
-#[derive(Deserialize)]
-struct FrameOwned {
-    camera: Camera,
-    settings: RenderSettings,
+/// A decoded frame blob: the camera and the render settings of a job.
+#[derive(Clone, Debug, Deserialize)]
+pub struct Frame {
+    /// The camera.
+    pub camera: Camera,
+    /// The render settings.
+    pub settings: RenderSettings,
+}
+
+/// Why a frame blob cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// The bytes are not a frame.
+    #[error("the frame does not decode: {0}")]
+    Codec(#[from] CodecError),
+    /// A value the scene's validation would have refused (a frame made by hand, or corrupted).
+    #[error("the frame's {0}")]
+    Invalid(#[from] FieldError),
+}
+
+impl Frame {
+    /// Decodes a frame blob of at most `limit` bytes and checks it with the scene's rules: image sizes within
+    /// [`crate::scene::MAX_IMAGE_SIDE`], finite camera, render settings in range. What arrives from the wire
+    /// passes here before anything is allocated from its sizes.
+    pub fn decode(frame: &[u8], limit: usize) -> Result<Self, FrameError> {
+        let f: Frame = codec::decode(frame, limit)?;
+        f.camera.check()?;
+        f.settings.check()?;
+        Ok(f)
+    }
 }
 
 impl Prepared {
@@ -72,10 +99,11 @@ impl Prepared {
         Ok(Self { camera, geometry, materials, lights, settings, photons: None })
     }
 
-    /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes.
-    pub fn from_blobs(scene: &[u8], photons: Option<&[u8]>, frame: &[u8], limit: usize) -> Result<Self, CodecError> {
+    /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes and a frame that
+    /// [`Frame::decode`] refuses.
+    pub fn from_blobs(scene: &[u8], photons: Option<&[u8]>, frame: &[u8], limit: usize) -> Result<Self, FrameError> {
         let s: SceneOwned = codec::decode(scene, limit)?;
-        let f: FrameOwned = codec::decode(frame, limit)?;
+        let f = Frame::decode(frame, limit)?;
         let photons = photons.map(|p| codec::decode(p, limit)).transpose()?;
         Ok(Self {
             camera: f.camera,

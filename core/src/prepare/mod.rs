@@ -4,6 +4,7 @@
 //! encodes the result for the wire and the caches.
 
 pub mod blobs;
+pub mod budget;
 pub mod photons;
 
 use crate::Rgb;
@@ -166,9 +167,11 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
             Object::Mesh { file, transform, emission, smooth, crease_angle, .. } => {
                 let path = scene.base_dir.join(file);
                 let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
-                let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals).map_err(|source| {
-                    SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
-                })?;
+                let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
+                let mesh =
+                    crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals, limit).map_err(|source| {
+                        SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
+                    })?;
                 let mesh_index = meshes.len() as u32;
                 for (face, t) in mesh.triangles.iter().enumerate() {
                     let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };

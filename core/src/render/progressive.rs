@@ -27,6 +27,7 @@ use crate::Rgb;
 use crate::integrator::{sample_one_light, visible_point};
 use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux};
 use crate::prepare::Prepared;
+use crate::prepare::budget::passes_at_once;
 use crate::prepare::photons::{PhotonKind, trace_photons};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -45,10 +46,6 @@ pub const MAX_BLOCK_PASSES: u32 = (1 << 15) - 1;
 
 /// The largest fixed-point value one pass adds to one channel.
 pub const MAX_PASS_SUM: i64 = (MAX_PASS_RADIANCE as i64) << SUM_FRACTION_BITS;
-
-/// Photon-map memory a block may hold at once while it traces passes side by side (bytes): beyond it, fewer
-/// passes are traced at once. It changes the speed, never a pixel.
-const GROUP_MAP_BYTES: u64 = 1 << 29;
 
 /// The squared gather radius of pass `pass` (0-based): `r0² · Π_{i=1}^{pass} (i + α) / (i + 1)` (Knaus &
 /// Zwicker 2011, eq. 15), computed in f64 in a fixed order.
@@ -128,8 +125,8 @@ pub fn render_passes(
     let width = prep.camera.width as usize;
     let mut sums = vec![0i64; 3 * width * rows.len()];
     let (mut rays, mut photon_paths, mut photon_seconds) = (0u64, 0u64, 0.0f64);
-    let per_map = (u64::from(ph.pass_photons) * 96).max(1);
-    let group = (GROUP_MAP_BYTES / per_map).clamp(1, rayon::current_num_threads().max(1) as u64) as u32;
+    // How many passes trace side by side changes the speed and the memory, never a pixel.
+    let group = passes_at_once(ph.pass_photons, rayon::current_num_threads());
     let mut done = 0u32;
     let mut start = passes.start;
     while start < passes.end {

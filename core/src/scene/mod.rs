@@ -39,6 +39,8 @@ pub mod types;
 mod validate;
 
 pub use types::*;
+pub(crate) use validate::image_side;
+pub use validate::{MAX_CAMERA_COORDINATE, MAX_IMAGE_SIDE, MAX_K, MAX_PASSES};
 
 use crate::material::Material;
 use serde::{Deserialize, Serialize};
@@ -63,9 +65,31 @@ pub struct Scene {
     /// Point lights (area lights are objects with `emission`).
     #[serde(default)]
     pub lights: Vec<LightSpec>,
+    /// Limits on the files the scene reads.
+    #[serde(default)]
+    pub limits: Limits,
     /// The folder that relative paths resolve against (the scene file's folder); not part of the file.
     #[serde(skip)]
     pub base_dir: PathBuf,
+}
+
+/// Limits on what a scene reads: the `[limits]` table.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Limits {
+    /// The largest mesh file read, in MiB; default 2048.
+    #[serde(default = "default_mesh_mib")]
+    pub mesh_mib: u64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Self { mesh_mib: default_mesh_mib() }
+    }
+}
+
+fn default_mesh_mib() -> u64 {
+    crate::input::DEFAULT_MESH_MIB
 }
 
 /// Why a scene could not be loaded. Every variant names the file, and the line or the field.
@@ -74,12 +98,19 @@ pub struct Scene {
 /// `source()` is `None` and a chain printer (`anyhow`'s `{:#}`) does not repeat the cause.
 #[derive(Debug)]
 pub enum SceneError {
-    /// The file could not be read.
+    /// The file could not be read, is not a regular file, or is larger than [`crate::input::MAX_SCENE_BYTES`].
     Io {
         /// The scene file.
         path: PathBuf,
         /// The cause.
-        source: std::io::Error,
+        source: crate::input::InputError,
+    },
+    /// The file is not UTF-8 text.
+    Encoding {
+        /// The scene file.
+        path: PathBuf,
+        /// Where the first byte that is not UTF-8 is.
+        at: crate::input::EncodingError,
     },
     /// TOML syntax or a field of the wrong name or type (the message gives line and column).
     Parse {
@@ -134,6 +165,9 @@ impl std::fmt::Display for SceneError {
             SceneError::Io { path, source } => {
                 write!(f, "{}: cannot read the scene file: {source}", path.display())
             }
+            SceneError::Encoding { path, at } => {
+                write!(f, "{}:{}: the scene is not UTF-8 text (byte offset {})", path.display(), at.line, at.offset)
+            }
             SceneError::Parse { path, message } => write!(f, "{}: {}", path.display(), message.trim_end()),
             SceneError::Invalid { path, line: Some(line), field, message } => {
                 write!(f, "{}:{line}: {field}: {message}", path.display())
@@ -165,8 +199,11 @@ impl Scene {
 
     /// Parses and validates scene text; `path` names the file in errors and gives the base folder.
     pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
-        let mut scene: Scene =
-            toml::from_str(text).map_err(|e| SceneError::Parse { path: path.into(), message: e.to_string() })?;
+        // The parser's message quotes the offending line: a megabyte-long one is cut.
+        let mut scene: Scene = toml::from_str(text).map_err(|e| SceneError::Parse {
+            path: path.into(),
+            message: crate::input::excerpt_lines(&e.to_string()),
+        })?;
         scene.base_dir = base_dir(path);
         scene.validate(text, path)?;
         Ok(scene)
@@ -183,9 +220,12 @@ impl Scene {
     }
 }
 
-/// The scene file's text.
+/// The scene file's text: a regular file of at most [`crate::input::MAX_SCENE_BYTES`], in UTF-8.
 fn read(path: &Path) -> Result<String, SceneError> {
-    std::fs::read_to_string(path).map_err(|source| SceneError::Io { path: path.into(), source })
+    let bytes = crate::input::read_regular(path, crate::input::MAX_SCENE_BYTES, "scenes are at most 16 MiB")
+        .map_err(|source| SceneError::Io { path: path.into(), source })?;
+    let text = crate::input::utf8(&bytes).map_err(|at| SceneError::Encoding { path: path.into(), at })?;
+    Ok(text.to_owned())
 }
 
 /// The folder that a scene file's relative paths resolve against.

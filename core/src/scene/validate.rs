@@ -1,7 +1,7 @@
 //! Scene validation: every value the types accept but the renderer cannot use (ranges, finiteness, names that
 //! must exist), reported as a [`FieldError`] that names the field; `Scene::parse` adds the file and line.
 
-use super::{LightSpec, Object, Scene};
+use super::{LightSpec, Object, RenderSettings, Scene};
 use crate::error::FieldError;
 use crate::geometry::shapes::Rect;
 use glam::Vec3;
@@ -11,7 +11,7 @@ impl Scene {
     /// found, in the order camera, render, materials, objects, lights.
     pub(super) fn check(&self) -> Result<(), FieldError> {
         self.check_camera()?;
-        self.check_render()?;
+        self.render.check()?;
         for (name, m) in &self.materials {
             m.validate().map_err(|e| e.within(&format!("materials.{name}")))?;
         }
@@ -26,66 +26,31 @@ impl Scene {
 
     fn check_camera(&self) -> Result<(), FieldError> {
         let c = &self.camera;
-        finite3("camera.eye", c.eye)?;
-        finite3("camera.look_at", c.look_at)?;
+        // The camera is set up in f32: squares and cross products of coordinates beyond this would overflow
+        // (3.4e38), so such a value is refused here with its own field rather than failing a later check.
+        coordinate3("camera.eye", c.eye)?;
+        coordinate3("camera.look_at", c.look_at)?;
+        coordinate3("camera.up", c.up)?;
         nonzero3("camera.up", c.up)?;
-        let view = c.look_at - c.eye;
-        if !view.is_finite() || view.length() == 0.0 {
+        // In f64, where these products cannot overflow.
+        let (eye, look_at, up) = (c.eye.as_dvec3(), c.look_at.as_dvec3(), c.up.as_dvec3());
+        let view = look_at - eye;
+        if view.length() == 0.0 {
             return Err(FieldError::new("camera.look_at", "must differ from camera.eye"));
         }
         // Relative, so that a nearly parallel `up` is caught whatever the scene's scale.
-        if c.up.cross(view).length() <= 1e-6 * c.up.length() * view.length() {
+        if up.cross(view).length() <= 1e-6 * up.length() * view.length() {
             return Err(FieldError::new("camera.up", "must not be parallel to the viewing direction"));
         }
         if !(c.fov > 0.0 && c.fov < 180.0) {
             return Err(FieldError::new("camera.fov", format!("expected degrees in (0, 180), found {}", c.fov)));
         }
         for (name, v) in [("camera.width", c.width), ("camera.height", c.height)] {
-            if v == 0 || v > 65_536 {
-                return Err(FieldError::new(name, format!("expected a pixel count in 1..=65536, found {v}")));
-            }
+            image_side(name, v)?;
         }
         positive_or_zero("camera.aperture", c.aperture)?;
         if let Some(f) = c.focus_distance {
             positive("camera.focus_distance", f)?;
-        }
-        Ok(())
-    }
-
-    fn check_render(&self) -> Result<(), FieldError> {
-        let r = &self.render;
-        if r.spp == 0 {
-            return Err(FieldError::new("render.spp", "expected at least 1 sample per pixel"));
-        }
-        if r.max_depth == 0 {
-            return Err(FieldError::new("render.max_depth", "expected at least 1 bounce"));
-        }
-        let ph = &r.photons;
-        let pf = |s: &str| format!("render.photons.{s}");
-        if ph.global == 0 {
-            return Err(FieldError::new(pf("global"), "expected at least 1 photon path"));
-        }
-        if ph.k < 2 {
-            return Err(FieldError::new(pf("k"), format!("expected at least 2 photons, found {}", ph.k)));
-        }
-        if let Some(radius) = ph.radius {
-            positive(&pf("radius"), radius)?;
-        }
-        if let Some(disc) = ph.disc {
-            positive(&pf("disc"), disc)?;
-        }
-        if !(ph.alpha > 0.0 && ph.alpha < 1.0) {
-            return Err(FieldError::new(pf("alpha"), format!("expected a number in (0, 1), found {}", ph.alpha)));
-        }
-        for (name, v) in
-            [("passes", ph.passes), ("pass_photons", ph.pass_photons), ("final_gather_rays", ph.final_gather_rays)]
-        {
-            if v == 0 {
-                return Err(FieldError::new(pf(name), "expected at least 1"));
-            }
-        }
-        if !r.exposure.is_finite() {
-            return Err(FieldError::new("render.exposure", "expected a finite number of stops"));
         }
         Ok(())
     }
@@ -96,7 +61,11 @@ impl Scene {
             let known: Vec<&str> = self.materials.keys().map(String::as_str).collect();
             return Err(FieldError::new(
                 f("material"),
-                format!("no material named `{}` (defined: {})", o.material(), known.join(", ")),
+                format!(
+                    "no material named `{}` (defined: {})",
+                    crate::input::excerpt(o.material()),
+                    crate::input::excerpt(&known.join(", "))
+                ),
             ));
         }
         let emission = match o {
@@ -211,6 +180,51 @@ impl Object {
     }
 }
 
+impl RenderSettings {
+    /// Checks the render settings, whether they come from a scene file or from the wire (a worker checks the
+    /// frame it is sent with the same rules); errors name the field under `render.`.
+    pub fn check(&self) -> Result<(), FieldError> {
+        let r = self;
+        if r.spp == 0 {
+            return Err(FieldError::new("render.spp", "expected at least 1 sample per pixel"));
+        }
+        if r.max_depth == 0 {
+            return Err(FieldError::new("render.max_depth", "expected at least 1 bounce"));
+        }
+        let ph = &r.photons;
+        let pf = |s: &str| format!("render.photons.{s}");
+        if ph.global == 0 {
+            return Err(FieldError::new(pf("global"), "expected at least 1 photon path"));
+        }
+        if !(2..=MAX_K).contains(&ph.k) {
+            return Err(FieldError::new(pf("k"), format!("expected 2 to {MAX_K} photons, found {}", ph.k)));
+        }
+        if let Some(radius) = ph.radius {
+            positive(&pf("radius"), radius)?;
+        }
+        if let Some(disc) = ph.disc {
+            positive(&pf("disc"), disc)?;
+        }
+        if !(ph.alpha > 0.0 && ph.alpha < 1.0) {
+            return Err(FieldError::new(pf("alpha"), format!("expected a number in (0, 1), found {}", ph.alpha)));
+        }
+        for (name, v) in
+            [("passes", ph.passes), ("pass_photons", ph.pass_photons), ("final_gather_rays", ph.final_gather_rays)]
+        {
+            if v == 0 {
+                return Err(FieldError::new(pf(name), "expected at least 1"));
+            }
+        }
+        if ph.passes > MAX_PASSES {
+            return Err(FieldError::new(pf("passes"), format!("expected at most {MAX_PASSES}, found {}", ph.passes)));
+        }
+        if !r.exposure.is_finite() {
+            return Err(FieldError::new("render.exposure", "expected a finite number of stops"));
+        }
+        Ok(())
+    }
+}
+
 fn check_light(i: usize, l: &LightSpec) -> Result<(), FieldError> {
     let f = |s: &str| format!("lights[{i}].{s}");
     match l {
@@ -225,6 +239,41 @@ fn check_light(i: usize, l: &LightSpec) -> Result<(), FieldError> {
                 return Err(FieldError::new(f(name), format!("expected finite non-negative values, found {v}")));
             }
         }
+    }
+    Ok(())
+}
+
+/// The largest image side in pixels. Memory, not this limit, usually decides what renders: a job is also
+/// checked against the machine's memory ([`crate::prepare::budget`]).
+pub const MAX_IMAGE_SIDE: u32 = 65_536;
+
+/// The most photons one k-nearest estimate gathers (`render.photons.k`): every render thread keeps a buffer
+/// of k candidates, and beyond a few thousand the estimate blurs more than it gains.
+pub const MAX_K: u32 = 100_000;
+
+/// The most passes of progressive photon mapping (`render.photons.passes`): each pass keeps a slot for its
+/// shared photon map.
+pub const MAX_PASSES: u32 = 1_000_000;
+
+/// An image side in pixels, `1..=MAX_IMAGE_SIDE`.
+pub(crate) fn image_side(field: &str, v: u32) -> Result<(), FieldError> {
+    if v == 0 || v > MAX_IMAGE_SIDE {
+        return Err(FieldError::new(field, format!("expected a pixel count in 1..={MAX_IMAGE_SIDE}, found {v}")));
+    }
+    Ok(())
+}
+
+/// The largest camera coordinate in absolute value, in scene units.
+pub const MAX_CAMERA_COORDINATE: f32 = 1e18;
+
+/// A finite camera vector whose coordinates are at most [`MAX_CAMERA_COORDINATE`] in absolute value.
+fn coordinate3(field: &str, v: Vec3) -> Result<(), FieldError> {
+    finite3(field, v)?;
+    if v.abs().max_element() > MAX_CAMERA_COORDINATE {
+        return Err(FieldError::new(
+            field,
+            format!("expected coordinates within ±{MAX_CAMERA_COORDINATE:e} (the camera works in f32), found {v}"),
+        ));
     }
     Ok(())
 }

@@ -1,0 +1,275 @@
+//! The memory a job needs, estimated from its settings before anything is allocated, so that a job that cannot
+//! fit is refused with the setting to change instead of aborting the process halfway (a 65536 × 65536 image
+//! alone is 51 GB of f32 pixels).
+//!
+//! The estimates are upper bounds of the large buffers only (the scene's geometry is already loaded when they
+//! are made): the coordinator checks a whole job ([`MemoryEstimate::job`]) against its machine, a worker checks
+//! each strip request ([`MemoryEstimate::strip`]) against its own.
+
+use crate::scene::{Integrator, RenderSettings};
+
+/// Bytes per pixel of an assembled image: the f32 RGB pixels (12), the strips' pixels as they arrive before
+/// being copied in (12), and the encoder's copy when the image is written (12).
+pub const IMAGE_BYTES_PER_PIXEL: u64 = 36;
+
+/// Bytes per pixel of one strip on a worker: the rendered f32 RGB pixels (12), their wire bytes (12) and the
+/// chunked events that carry them (12).
+pub const STRIP_BYTES_PER_PIXEL: u64 = 36;
+
+/// Bytes per pixel of progressive photon mapping's pass sums in one place: the fixed-point sums of a block
+/// (3 × i64 = 24) and their wire bytes (24) on a worker, or the whole render's sums (3 × i128 = 48) on the
+/// coordinator.
+pub const PROGRESSIVE_BYTES_PER_PIXEL: u64 = 48;
+
+/// Photon-map bytes a worker may hold at once while it traces progressive passes side by side.
+pub const PASS_MAPS_AT_ONCE_BYTES: u64 = 1 << 29;
+
+/// How many progressive passes a worker traces side by side with `threads` threads: as many as the threads,
+/// while their maps (about 96 bytes per photon path) stay within [`PASS_MAPS_AT_ONCE_BYTES`], and at least one.
+pub fn passes_at_once(pass_photons: u32, threads: usize) -> u32 {
+    let per_map = (u64::from(pass_photons) * 96).max(1);
+    (PASS_MAPS_AT_ONCE_BYTES / per_map).clamp(1, threads.max(1) as u64) as u32
+}
+
+/// Photons stored per emitted path, an upper bound for scenes of usual albedo (Russian roulette ends a path
+/// after 1/(1 − albedo) bounces on average: 3.3 at albedo 0.7).
+pub const PHOTONS_PER_PATH: u64 = 4;
+
+/// Bytes per stored photon: the photon (36) and its share of the kd-tree, and of the encoded blob.
+pub const BYTES_PER_PHOTON: u64 = 128;
+
+/// Bytes per candidate of a k-nearest query buffer (index and squared distance, with slack).
+pub const BYTES_PER_NEIGHBOUR: u64 = 16;
+
+/// The large buffers of a job, in bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MemoryEstimate {
+    /// Pixels: the image being assembled, or one strip's.
+    pub image: u64,
+    /// The global and caustic photon maps.
+    pub photon_maps: u64,
+    /// The progressive passes' photon maps traced side by side while a block renders ([`passes_at_once`]).
+    pub pass_map: u64,
+    /// Progressive photon mapping's pass sums: a block's on a worker, the whole render's on the coordinator.
+    pub progressive: u64,
+    /// The k-nearest buffers of every render thread.
+    pub k_nearest: u64,
+}
+
+/// A job or strip that does not fit the memory it may use.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{setting}: the job needs about {} ({what} {}), more than the {} available; {fits}",
+    gib(*needed), gib(*part), gib(*budget)
+)]
+pub struct BudgetError {
+    /// The setting that decides the largest part, e.g. `camera.width × camera.height`.
+    pub setting: &'static str,
+    /// What the largest part is.
+    pub what: &'static str,
+    /// Bytes of the largest part.
+    pub part: u64,
+    /// Bytes of the whole estimate.
+    pub needed: u64,
+    /// Bytes available.
+    pub budget: u64,
+    /// What would fit, in the setting's terms.
+    pub fits: String,
+}
+
+/// `bytes` in GiB or MiB, for messages.
+pub fn gib(bytes: u64) -> String {
+    if bytes >= 1 << 30 {
+        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
+    } else {
+        format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
+    }
+}
+
+impl MemoryEstimate {
+    /// A whole render on one machine: the image, the photon maps, and the strips of its in-process workers
+    /// (`strip_rows` rows at a time on `threads` threads).
+    pub fn job(width: u32, height: u32, strip_rows: u32, settings: &RenderSettings, threads: usize) -> Self {
+        let strip = Self::strip(width, strip_rows.min(height), settings, threads);
+        let paths = match settings.integrator {
+            Integrator::PhotonMap => u64::from(settings.photons.global),
+            Integrator::FinalGather => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
+            Integrator::Path | Integrator::Direct | Integrator::Progressive => 0,
+        };
+        // The coordinator adds the blocks' sums into its own (a block as it arrives is counted in `strip`).
+        let sums = if settings.integrator == Integrator::Progressive {
+            pixels(width, height).saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL)
+        } else {
+            0
+        };
+        Self {
+            image: pixels(width, height).saturating_mul(IMAGE_BYTES_PER_PIXEL).saturating_add(strip.image),
+            photon_maps: paths.saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON),
+            progressive: strip.progressive.saturating_add(sums),
+            ..strip
+        }
+    }
+
+    /// One strip of `rows` rows of an image `width` pixels wide on a worker with `threads` render threads (the
+    /// photon maps are not counted: they arrived as a blob whose size the worker already limits).
+    pub fn strip(width: u32, rows: u32, settings: &RenderSettings, threads: usize) -> Self {
+        let px = pixels(width, rows);
+        let progressive = settings.integrator == Integrator::Progressive;
+        let gathers = settings.integrator.needs_photon_maps() || progressive;
+        Self {
+            image: px.saturating_mul(STRIP_BYTES_PER_PIXEL),
+            photon_maps: 0,
+            pass_map: if progressive {
+                u64::from(settings.photons.pass_photons)
+                    .saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON)
+                    .saturating_mul(u64::from(passes_at_once(settings.photons.pass_photons, threads)))
+            } else {
+                0
+            },
+            progressive: if progressive { px.saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL) } else { 0 },
+            k_nearest: if gathers {
+                u64::from(settings.photons.k).saturating_mul(BYTES_PER_NEIGHBOUR).saturating_mul(threads as u64)
+            } else {
+                0
+            },
+        }
+    }
+
+    /// The sum of the parts.
+    pub fn total(&self) -> u64 {
+        [self.image, self.photon_maps, self.pass_map, self.progressive, self.k_nearest]
+            .iter()
+            .fold(0u64, |a, &b| a.saturating_add(b))
+    }
+
+    /// `Ok` when the estimate fits `budget` bytes; otherwise the largest part, its setting, and the value of that
+    /// setting that would fit with the other parts as they are. `width`, `height` and `settings` are the job's.
+    pub fn check(&self, budget: u64, width: u32, height: u32, settings: &RenderSettings) -> Result<(), BudgetError> {
+        let needed = self.total();
+        if needed <= budget {
+            return Ok(());
+        }
+        let parts = [
+            (self.image, Part::Image),
+            (self.photon_maps, Part::PhotonMaps),
+            (self.pass_map, Part::PassMap),
+            (self.progressive, Part::Progressive),
+            (self.k_nearest, Part::KNearest),
+        ];
+        let (part, largest) = parts.iter().copied().max_by_key(|p| p.0).unwrap_or(parts[0]);
+        // The share of the budget the largest part may have, the others staying as they are.
+        let room = budget.saturating_sub(needed - part);
+        let fits = if room == 0 {
+            "the other parts alone do not fit".to_owned()
+        } else {
+            largest.fits(room as f64 / part.max(1) as f64, width, height, settings)
+        };
+        let (setting, what) = (largest.setting(), largest.what());
+        Err(BudgetError { setting, what, part, needed, budget, fits })
+    }
+}
+
+/// The parts of an estimate, each decided by one setting.
+#[derive(Clone, Copy, Debug)]
+enum Part {
+    Image,
+    PhotonMaps,
+    PassMap,
+    Progressive,
+    KNearest,
+}
+
+impl Part {
+    fn setting(self) -> &'static str {
+        match self {
+            Part::Image => "camera.width × camera.height",
+            Part::PhotonMaps => "render.photons.global",
+            Part::PassMap => "render.photons.pass_photons",
+            Part::Progressive => "camera.width",
+            Part::KNearest => "render.photons.k",
+        }
+    }
+
+    fn what(self) -> &'static str {
+        match self {
+            Part::Image => "pixels",
+            Part::PhotonMaps => "photon maps",
+            Part::PassMap => "progressive passes' photons",
+            Part::Progressive => "progressive pass sums",
+            Part::KNearest => "k-nearest buffers",
+        }
+    }
+
+    /// The value of this part's setting that would fit when the part may be `scale` times its size (each part
+    /// grows in proportion to its setting; the image with the square of its scale along each side).
+    fn fits(self, scale: f64, width: u32, height: u32, settings: &RenderSettings) -> String {
+        let times = |v: u32| (f64::from(v) * scale) as u64;
+        match self {
+            Part::Image => {
+                let s = scale.sqrt();
+                let (w, h) = ((f64::from(width) * s) as u32, (f64::from(height) * s) as u32);
+                format!("an image of about {w} × {h} pixels would fit")
+            }
+            Part::PhotonMaps => {
+                format!("about {} photon paths (global and caustic together) would fit", times(settings.photons.global))
+            }
+            Part::PassMap => format!("about {} photon paths per pass would fit", times(settings.photons.pass_photons)),
+            Part::Progressive => format!("an image about {} pixels wide would fit", times(width)),
+            Part::KNearest => format!("k = {} would fit", times(settings.photons.k)),
+        }
+    }
+}
+
+fn pixels(width: u32, rows: u32) -> u64 {
+    u64::from(width) * u64::from(rows)
+}
+
+/// The machine's physical memory in bytes, from `/proc/meminfo` (`MemTotal`); `None` where it cannot be read.
+pub fn machine_memory() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    text.lines()
+        .find_map(|l| l.strip_prefix("MemTotal:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
+        .map(|kib| kib * 1024)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_huge_image_is_refused_with_what_fits() {
+        let settings = RenderSettings::default();
+        let e = MemoryEstimate::job(65_536, 65_536, 16, &settings, 8);
+        assert!(e.image > 140 << 30, "{e:?}");
+        let err = e.check(16 << 30, 65_536, 65_536, &settings).unwrap_err();
+        assert_eq!(err.setting, "camera.width × camera.height");
+        let msg = err.to_string();
+        assert!(msg.contains("would fit") && msg.contains("16.0 GiB"), "{msg}");
+        // The suggested size does fit.
+        let fits = MemoryEstimate::job(21_000, 21_000, 16, &settings, 8);
+        assert!(fits.check(16 << 30, 21_000, 21_000, &settings).is_ok(), "{fits:?}");
+        assert!(MemoryEstimate::job(512, 512, 16, &settings, 8).check(1 << 30, 512, 512, &settings).is_ok());
+    }
+
+    #[test]
+    fn photon_budgets_name_their_setting() {
+        let mut settings = RenderSettings { integrator: Integrator::PhotonMap, ..Default::default() };
+        settings.photons.global = u32::MAX;
+        let err = MemoryEstimate::job(64, 64, 64, &settings, 8).check(8 << 30, 64, 64, &settings).unwrap_err();
+        assert_eq!(err.setting, "render.photons.global");
+        settings.integrator = Integrator::Progressive;
+        settings.photons.pass_photons = u32::MAX;
+        let err = MemoryEstimate::strip(64, 1, &settings, 8).check(8 << 30, 64, 1, &settings).unwrap_err();
+        assert_eq!(err.setting, "render.photons.pass_photons");
+    }
+
+    #[test]
+    fn passes_side_by_side_are_bounded_by_threads_and_memory() {
+        assert_eq!(passes_at_once(100_000, 16), 16);
+        assert_eq!(passes_at_once(100_000, 0), 1);
+        // 2 M paths of about 96 bytes: 2 maps fit 512 MiB.
+        assert_eq!(passes_at_once(2_000_000, 16), 2);
+        assert_eq!(passes_at_once(u32::MAX, 16), 1);
+    }
+}
