@@ -221,9 +221,11 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
         .await
         .map_err(|_| SessionError::HelloTimeout)?
         .map_err(|s| {
-            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer.
+            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer: as
+            // a transport error, or, when the close comes while the call waits (hyper), as a cancelled call,
+            // which the coordinator never makes of a hello itself.
             let hint = match s.code() {
-                Code::Unavailable | Code::Unknown | Code::Internal => {
+                Code::Unavailable | Code::Unknown | Code::Internal | Code::Cancelled => {
                     " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
                 }
                 _ => "",
