@@ -26,6 +26,7 @@ use crate::session::{self, Client, Ready, SessionError, StripData, StripError, S
 use photon_core::render::progressive::PassAccumulator;
 use photon_proto::pb;
 use std::collections::BTreeMap;
+use std::ops::Range;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc::{self, UnboundedSender};
 use tokio::task::{AbortHandle, JoinHandle};
@@ -278,34 +279,32 @@ impl<'a> Farm<'a> {
                     .into(),
             ));
         }
-        if let Some(acc) = &mut self.passes {
-            let restored = p.pass_sums.as_deref().is_some_and(|sums| acc.restore(sums));
-            let blocks: Vec<StripId> =
-                p.strips.iter().map(|(first, _)| StripId(first / self.rows_per_strip.max(1))).collect();
-            let fits = |(id, (first, _)): (&StripId, &(u32, Vec<f32>))| {
-                self.sched.strip_rows(*id).is_some_and(|passes| passes.start == *first)
+        if self.passes.is_some() {
+            // Every block must fit this render's cut: their sums cannot be taken apart.
+            let blocks: Option<Vec<(StripId, Range<u32>)>> =
+                p.strips.iter().map(|(first, _)| self.unit_starting_at(*first)).collect();
+            let restored = match (&mut self.passes, &p.pass_sums) {
+                (Some(acc), Some(sums)) => acc.restore(sums),
+                _ => false,
             };
-            if !restored || !blocks.iter().zip(&p.strips).all(fits) {
+            let Some(blocks) = blocks.filter(|_| restored) else {
                 return Err(FarmError::Resume(
                     "the partial file's pass blocks do not fit this render: render without --resume".into(),
                 ));
-            }
-            for id in blocks {
+            };
+            for (id, passes) in blocks {
                 if self.sched.mark_done(id) {
-                    self.resumed += 1;
-                }
-                if let Some(passes) = self.sched.strip_rows(id) {
                     self.done_rows.insert(passes.start, passes.end);
+                    self.resumed += 1;
                 }
             }
             return Ok(());
         }
         let width = job.width as usize;
         for (first_row, pixels) in &p.strips {
-            let id = StripId(first_row / self.rows_per_strip.max(1));
-            let Some(rows) = self.sched.strip_rows(id) else { continue };
+            let Some((id, rows)) = self.unit_starting_at(*first_row) else { continue };
             let len = 3 * width * rows.len();
-            if rows.start != *first_row || pixels.len() != len {
+            if pixels.len() != len {
                 continue;
             }
             let at = 3 * width * rows.start as usize;
@@ -316,6 +315,12 @@ impl<'a> Farm<'a> {
             }
         }
         Ok(())
+    }
+
+    /// The strip (or pass block) of this render's cut that starts at row (or pass) `first`, with its range.
+    fn unit_starting_at(&self, first: u32) -> Option<(StripId, Range<u32>)> {
+        let id = StripId(first / self.rows_per_strip.max(1));
+        self.sched.strip_rows(id).filter(|r| r.start == first).map(|r| (id, r))
     }
 
     /// How the render ended, once it has.

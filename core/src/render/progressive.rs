@@ -50,9 +50,35 @@ pub const MAX_PASS_SUM: i64 = (MAX_PASS_RADIANCE as i64) << SUM_FRACTION_BITS;
 /// The squared gather radius of pass `pass` (0-based): `r0² · Π_{i=1}^{pass} (i + α) / (i + 1)` (Knaus &
 /// Zwicker 2011, eq. 15), computed in f64 in a fixed order.
 pub fn pass_radius2(r0: f32, alpha: f32, pass: u32) -> f32 {
-    let alpha = f64::from(alpha);
-    let ratio: f64 = (1..=pass).map(|i| (f64::from(i) + alpha) / (f64::from(i) + 1.0)).product();
-    (f64::from(r0) * f64::from(r0) * ratio) as f32
+    RadiusSequence::at(r0, alpha, pass).r2()
+}
+
+/// The radius sequence walked pass by pass: the product of [`pass_radius2`] kept from one pass to the next, so a
+/// block pays for the passes before it once, not once per pass. Each step multiplies in the same order as the
+/// whole product, so every value is bit for bit [`pass_radius2`]'s.
+#[derive(Clone, Copy, Debug)]
+struct RadiusSequence {
+    r0: f64,
+    alpha: f64,
+    pass: u32,
+    /// `Π_{i=1}^{pass} (i + α) / (i + 1)`, multiplied left to right.
+    ratio: f64,
+}
+
+impl RadiusSequence {
+    fn at(r0: f32, alpha: f32, pass: u32) -> Self {
+        let start = Self { r0: f64::from(r0), alpha: f64::from(alpha), pass: 0, ratio: 1.0 };
+        (0..pass).fold(start, |s, _| s.next())
+    }
+
+    fn next(self) -> Self {
+        let i = f64::from(self.pass + 1);
+        Self { pass: self.pass + 1, ratio: self.ratio * ((i + self.alpha) / (i + 1.0)), ..self }
+    }
+
+    fn r2(&self) -> f32 {
+        (self.r0 * self.r0 * self.ratio) as f32
+    }
 }
 
 /// The fixed-point value of one pass's estimate of one channel: `round(v · 2²⁴)`, with `v` clamped to
@@ -128,6 +154,7 @@ pub fn render_passes(
     // How many passes trace side by side changes the speed and the memory, never a pixel.
     let group = passes_at_once(ph.pass_photons, rayon::current_num_threads());
     let mut done = 0u32;
+    let mut radius = RadiusSequence::at(prep.photon_radius(), ph.alpha, passes.start);
     let mut start = passes.start;
     while start < passes.end {
         let end = start.saturating_add(group).min(passes.end);
@@ -136,7 +163,9 @@ pub fn render_passes(
         photon_seconds += t0.elapsed().as_secs_f64();
         for (pass, (map, paths)) in (start..end).zip(maps) {
             photon_paths += paths;
-            rays += render_pass(prep, &rows, pass, map.as_ref(), &mut sums);
+            debug_assert_eq!(radius.pass, pass);
+            rays += render_pass(prep, &rows, pass, radius.r2(), map.as_ref(), &mut sums);
+            radius = radius.next();
             done += 1;
             if !progress(done) {
                 return None;
@@ -156,10 +185,17 @@ fn pass_map(prep: &Prepared, pass: u32) -> (Option<PhotonMap>, u64) {
     (map, traced.paths)
 }
 
-/// Adds pass `pass`'s fixed-point estimates of rows `rows` to `sums`; returns the rays traced.
-fn render_pass(prep: &Prepared, rows: &Range<u32>, pass: u32, map: Option<&PhotonMap>, sums: &mut [i64]) -> u64 {
+/// Adds pass `pass`'s fixed-point estimates of rows `rows`, gathered at squared radius `r2`, to `sums`; returns
+/// the rays traced.
+fn render_pass(
+    prep: &Prepared,
+    rows: &Range<u32>,
+    pass: u32,
+    r2: f32,
+    map: Option<&PhotonMap>,
+    sums: &mut [i64],
+) -> u64 {
     let ph = &prep.settings.photons;
-    let r2 = pass_radius2(prep.photon_radius(), ph.alpha, pass);
     let est = Estimator {
         gather: Gather::Radius { radius: r2.sqrt() },
         kernel: Kernel::Box,
@@ -290,6 +326,16 @@ mod tests {
             let expected =
                 f64::from(pass_radius2(r0, alpha, i - 1)) * (f64::from(i) + f64::from(alpha)) / (f64::from(i) + 1.0);
             assert!((f64::from(pass_radius2(r0, alpha, i)) - expected).abs() <= 1e-6 * expected);
+        }
+        // Walking the sequence gives the same bits as the whole product computed from scratch for each pass.
+        let mut walk = RadiusSequence::at(r0, alpha, 0);
+        for i in 0..300u32 {
+            let a = f64::from(alpha);
+            let ratio: f64 = (1..=i).map(|k| (f64::from(k) + a) / (f64::from(k) + 1.0)).product();
+            let scratch = (f64::from(r0) * f64::from(r0) * ratio) as f32;
+            assert_eq!(walk.r2().to_bits(), scratch.to_bits(), "pass {i}");
+            assert_eq!(RadiusSequence::at(r0, alpha, i).r2().to_bits(), scratch.to_bits(), "pass {i}");
+            walk = walk.next();
         }
         // r_i² ~ i^(α−1): the ratio of radii 1000 passes apart follows the power law within a percent.
         let ratio = f64::from(pass_radius2(r0, alpha, 1999) / pass_radius2(r0, alpha, 999));
