@@ -332,13 +332,25 @@ fn model() {
         scene.render.photons.pass_photons = photons.max(1);
         scene.render.photons.passes = 2;
         let t = Instant::now();
-        let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
+        let scene_only = Prepared::new(&scene, &path).expect("prepare");
+        let scene_prepare_s = t.elapsed().as_secs_f64();
+        let prep = scene_only.clone().with_photon_maps(&path).expect("photon maps");
         let prepare_s = t.elapsed().as_secs_f64();
         let job = job_of(&prep);
         let photons_blob = job.photons_blob.as_ref().and_then(|id| job.blobs.get(id)).map(|b| b.as_slice());
-        let (load_core_s, _) = one_thread(|| {
-            Prepared::from_blobs(&job.blobs[&job.scene_blob], photons_blob, &job.frame, usize::MAX).expect("decode")
-        });
+        let decode = |photons| {
+            Prepared::from_blobs(&job.blobs[&job.scene_blob], photons, &job.frame, usize::MAX).expect("decode")
+        };
+        let (load_core_s, _) = one_thread(|| decode(photons_blob));
+        // How the workers get the maps: shipped (the coordinator traces them while preparing), or traced by each
+        // worker while loading (only the scene blob ships; `--photon-maps trace`).
+        let mut deliveries = vec![("", job.blob_bytes() as f64, prepare_s, load_core_s)];
+        if integrator.needs_photon_maps() {
+            let (traced_load_s, _) = one_thread(|| decode(None).build_photon_maps().expect("maps"));
+            let scene_bytes = job.blobs[&job.scene_blob].len() as f64;
+            deliveries[0].0 = ", maps shipped";
+            deliveries.push((", maps traced by workers", scene_bytes, scene_prepare_s, traced_load_s));
+        }
         let rows = 8u32;
         let (units, core_s_per_unit, fixed, per_unit, label) = if integrator == Integrator::Progressive {
             // Two passes over 8 rows: the photon part is per pass, the gather part per row.
@@ -364,14 +376,15 @@ fn model() {
         } else {
             vec![photon_coordinator::scheduler::rows_per_strip_for(height, lab.len() as u32)]
         };
-        for per_strip in cuts {
+        let runs = cuts.iter().flat_map(|&c| deliveries.iter().map(move |&d| (c, d)));
+        for (per_strip, (delivery, blob_bytes, prepare_s, load_core_s)) in runs {
             let sim = SimJob {
                 units,
                 units_per_strip: per_strip,
                 core_s_per_unit,
                 result_bytes_fixed: fixed,
                 result_bytes_per_unit: per_unit,
-                blob_bytes: job.blob_bytes() as f64,
+                blob_bytes,
                 prepare_s,
                 load_core_s,
                 thread_efficiency: 1.0,
@@ -383,7 +396,7 @@ fn model() {
             let d = simulate(&sim, &dying, &net, Policy::default());
             assert!(r.complete && d.complete, "{integrator}: the model did not finish");
             println!(
-                "| {integrator} | {label} | {units} | {core_s_per_unit:.3} core-s | {} | {:.1} | {:.1} | {:.1} % | {:.2} | {:.2} | {:.1} | {} | {:.1}, {:.1} % |",
+                "| {integrator}{delivery} | {label} | {units} | {core_s_per_unit:.3} core-s | {} | {:.1} | {:.1} | {:.1} % | {:.2} | {:.2} | {:.1} | {} | {:.1}, {:.1} % |",
                 units.div_ceil(per_strip),
                 r.makespan_s,
                 r.ideal_s,

@@ -2,6 +2,7 @@
 //! arguments ([`crate::cli`]) to its output files and the lines it prints.
 
 use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
+use crate::delivery::{self, MapDelivery};
 use crate::farm::{self, FarmError};
 use crate::fleet;
 use crate::job::{Partial, partial_path, prepare_job};
@@ -15,7 +16,7 @@ use photon_core::metrics::{self, Metrics};
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Integrator, Scene};
 use std::path::Path;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
@@ -50,7 +51,20 @@ fn render(args: RenderArgs) -> Result<()> {
         (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
         _ => None,
     };
-    let (job, hits) = prepare_job(&scene, &args.scene, cache.as_ref())?;
+    let rt = runtime()?;
+    // The workers start (and remote ones are asked their threads) before preparing: how they get the photon
+    // maps depends on them.
+    let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
+    let model_farm = if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
+        Some(rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref())))
+    } else {
+        None
+    };
+    let decide = |prep: &Prepared| match &model_farm {
+        Some(f) => delivery::choose(MapDelivery::Auto, prep, f),
+        None => delivery::choose(args.photon_maps, prep, &delivery::Farm::default()),
+    };
+    let (job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
     let (width, height) = (job.width, job.height);
     let settings = scene.render.clone();
     let prepare_s = t0.elapsed().as_secs_f64();
@@ -64,8 +78,7 @@ fn render(args: RenderArgs) -> Result<()> {
         resume,
         progress: !args.quiet,
     };
-    let (outcome, in_process) = runtime()?.block_on(async {
-        let fleet = fleet::Fleet::start(&spec).await?;
+    let (outcome, in_process) = rt.block_on(async {
         let outcome = farm::render(&job, &fleet.addrs, options).await;
         let in_process = fleet.is_in_process();
         fleet.stop().await;
@@ -87,10 +100,41 @@ fn render(args: RenderArgs) -> Result<()> {
     if !in_process {
         print_workers(&outcome.workers);
     }
-    let summary =
-        Summary { output: &args.output, size: (width, height), settings: &settings, prepare_s, assemble_s, hits };
+    let summary = Summary {
+        output: &args.output,
+        size: (width, height),
+        settings: &settings,
+        prepare_s,
+        assemble_s,
+        hits,
+        delivery,
+    };
     println!("{}", summary.line(&outcome));
     Ok(())
+}
+
+/// The workers as the photon-map delivery model sees them: their threads (asked by a hello for remote ones),
+/// this machine's threads, and the link between them.
+async fn model_farm(
+    spec: &fleet::FleetSpec,
+    fleet: &fleet::Fleet,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+) -> delivery::Farm {
+    let here = rayon::current_num_threads() as u32;
+    let (worker_threads, link_bytes_per_s) = match spec {
+        fleet::FleetSpec::InProcess(threads) => {
+            (vec![threads.map_or(here, |t| t as u32)], delivery::LOOPBACK_BYTES_PER_S)
+        }
+        fleet::FleetSpec::Local { n, threads, .. } => {
+            (vec![(threads / n.max(&1)).max(1) as u32; *n], delivery::LOOPBACK_BYTES_PER_S)
+        }
+        fleet::FleetSpec::Remote(_) => {
+            let threads = delivery::probe_threads(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
+            (threads, delivery::LINK_BYTES_PER_S)
+        }
+    };
+    delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s }
 }
 
 /// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is

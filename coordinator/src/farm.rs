@@ -402,31 +402,48 @@ impl<'a> Farm<'a> {
     /// A valid strip or pass block: the first copy wins and the others are cancelled.
     fn on_result(&mut self, worker: WorkerId, strip: StripId, attempt: u32, result: StripResult, now: Duration) {
         let StripResult { data, summary } = result;
+        // Maps a worker traced for itself count whichever copy of a strip reports them (the worker traced them
+        // once, for the job); a pass block's photons count only when the block is accepted, so that their total
+        // is the job's.
+        let traced_maps = self.job.trace_photons;
         let m = &mut self.members[worker.0 as usize];
         m.load_s += summary.load_seconds;
+        if traced_maps {
+            m.photon_paths += summary.photon_paths;
+            m.photon_s += summary.photon_seconds;
+            self.photon_paths += summary.photon_paths;
+        }
         match self.sched.complete(worker, strip, attempt, now) {
             Completion::Accepted { cancel } => {
-                m.photon_paths += summary.photon_paths;
-                m.photon_s += summary.photon_seconds;
-                if let Some(rows) = self.sched.strip_rows(strip) {
-                    match (data, &mut self.passes) {
-                        (StripData::Sums(sums), Some(acc)) => acc.add(&sums),
-                        (StripData::Pixels(pixels), None) => {
-                            let at = 3 * self.job.width as usize * rows.start as usize;
-                            self.image[at..at + pixels.len()].copy_from_slice(&pixels);
-                        }
-                        // fetch_strip returns the kind the request asked for, and the request follows the job.
-                        _ => unreachable!("a strip's values are of the kind its job renders"),
-                    }
-                    self.done_rows.insert(rows.start, rows.end);
+                if !traced_maps {
+                    let m = &mut self.members[worker.0 as usize];
+                    m.photon_paths += summary.photon_paths;
+                    m.photon_s += summary.photon_seconds;
+                    self.photon_paths += summary.photon_paths;
                 }
-                self.rays += summary.rays;
-                self.photon_paths += summary.photon_paths;
-                self.cancel(cancel);
-                self.bar.inc(1);
+                self.accept(strip, data, summary.rays, cancel);
             }
             Completion::Duplicate | Completion::Unknown => {}
         }
+    }
+
+    /// Adds an accepted strip or pass block (which traced `rays`) to the image, and cancels its other copies.
+    fn accept(&mut self, strip: StripId, data: StripData, rays: u64, cancel: Vec<(WorkerId, StripId)>) {
+        if let Some(rows) = self.sched.strip_rows(strip) {
+            match (data, &mut self.passes) {
+                (StripData::Sums(sums), Some(acc)) => acc.add(&sums),
+                (StripData::Pixels(pixels), None) => {
+                    let at = 3 * self.job.width as usize * rows.start as usize;
+                    self.image[at..at + pixels.len()].copy_from_slice(&pixels);
+                }
+                // fetch_strip returns the kind the request asked for, and the request follows the job.
+                _ => unreachable!("a strip's values are of the kind its job renders"),
+            }
+            self.done_rows.insert(rows.start, rows.end);
+        }
+        self.rays += rays;
+        self.cancel(cancel);
+        self.bar.inc(1);
     }
 
     /// A worker that cannot be reached: its strips go to the others.
@@ -628,6 +645,7 @@ fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: U
         attempt: a.attempt,
         pass_start: passes.start,
         pass_end: passes.end,
+        trace_photons: job.trace_photons,
     };
     let (strip, attempt, width) = (a.strip, a.attempt, job.width);
     let progress_tx = tx.clone();

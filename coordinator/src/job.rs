@@ -2,6 +2,7 @@
 //! built by [`prepare_job`], through the prepared-blob cache when there is one), and the strips finished so far
 //! ([`Partial`]), kept in a partial file beside the output for `--resume`.
 
+use crate::delivery::{Decision, MapDelivery};
 use crate::prepared_cache::PreparedCacheError;
 use crate::prepared_cache::{self, PreparedCache};
 use photon_core::codec::CodecError;
@@ -77,6 +78,9 @@ pub struct Job {
     pub width: u32,
     /// Image height in pixels.
     pub height: u32,
+    /// The method reads photon maps and the job carries none: every worker traces them itself from the
+    /// deterministic photon streams ([`crate::delivery`]).
+    pub trace_photons: bool,
     /// The pass count when the method is progressive photon mapping: the farm then hands out whole-image pass
     /// blocks ([`crate::scheduler::passes_per_block_for`]) instead of strips of rows.
     pub passes: Option<u32>,
@@ -101,15 +105,16 @@ impl Job {
         });
         let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
         let passes = progressive.then_some(settings.photons.passes.max(1));
-        Self { scene_blob, photons_blob, blobs, frame, width, height, passes }
+        let trace_photons = settings.integrator.needs_photon_maps() && photons_blob.is_none();
+        Self { scene_blob, photons_blob, blobs, frame, width, height, passes, trace_photons }
     }
 
-    /// A fingerprint of everything that decides the pixels: the blobs, the frame and the size. A partial file
-    /// is resumed only by the job with the same fingerprint.
+    /// A fingerprint of everything that decides the pixels: the scene blob, the frame and the size. A partial
+    /// file is resumed only by the job with the same fingerprint. The photons blob is left out: the scene and
+    /// the frame decide its bytes, and a job whose workers trace the maps renders the same image.
     pub fn fingerprint(&self) -> String {
         let mut h = photon_proto::Hasher::new();
         h.update(self.scene_blob.as_bytes());
-        h.update(self.photons_blob.as_deref().unwrap_or("").as_bytes());
         h.update(&self.frame);
         h.update(&self.width.to_le_bytes());
         h.update(&self.height.to_le_bytes());
@@ -142,28 +147,38 @@ pub struct Partial {
 }
 
 /// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes, BVH,
-/// materials, lights) and the photons blob are each read from the cache or built and stored.
+/// materials, lights) and the photons blob are each read from the cache or built and stored. For a method with
+/// photon maps, `delivery` decides from the prepared scene whether the maps are traced here and shipped or
+/// traced by the workers ([`crate::delivery`]); the job then carries no photons blob and the workers trace.
 pub fn prepare_job(
     scene: &Scene,
     scene_path: &Path,
     cache: Option<&PreparedCache>,
-) -> Result<(Job, Option<prepared_cache::Hits>), JobError> {
+    delivery: impl FnOnce(&Prepared) -> Decision,
+) -> Result<(Job, Option<prepared_cache::Hits>, Option<Decision>), JobError> {
     let camera = photon_core::camera::Camera::new(&scene.camera);
     let settings = scene.render.clone();
     let frame = Prepared::encode_frame_of(&camera, &settings).map_err(|e| JobError::Encode("frame", e))?;
     let (width, height) = (camera.width, camera.height);
+    let needs_photons = settings.integrator.needs_photon_maps();
+    let job = |scene_blob, photons| Job::new(scene_blob, photons, frame.clone(), (width, height), &settings);
     let Some(cache) = cache else {
-        let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
+        let prep = Prepared::new(scene, scene_path)?;
         let scene_blob = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
-        let photons = prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?;
-        return Ok((Job::new(scene_blob, photons, frame, (width, height), &settings), None));
+        let decision = needs_photons.then(|| delivery(&prep));
+        let photons = match decision {
+            Some(d) if d.mode == MapDelivery::Ship => {
+                let prep = prep.with_photon_maps(scene_path)?;
+                prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?
+            }
+            _ => None,
+        };
+        return Ok((job(scene_blob, photons), None, decision));
     };
     let keys = PreparedCache::keys(scene)?;
-    let needs_photons = settings.integrator.needs_photon_maps();
     let cached_scene = cache.load(&keys.scene, "scene");
-    let cached_photons = if needs_photons { cache.load(&keys.photons, "photons") } else { None };
-    let hits = prepared_cache::Hits { scene: cached_scene.is_some(), photons: cached_photons.is_some() };
-    // Build what is missing; decode the cached scene only when photons must be traced in it.
+    let scene_hit = cached_scene.is_some();
+    // Build what is missing; decode the cached scene only when photons are involved.
     let (scene_blob, prep) = match cached_scene {
         Some(bytes) => (bytes, None),
         None => {
@@ -173,15 +188,25 @@ pub fn prepare_job(
             (bytes, Some(prep))
         }
     };
-    let photons = match (needs_photons, cached_photons) {
-        (false, _) => None,
-        (true, Some(bytes)) => Some(bytes),
-        (true, None) => {
-            let prep = match prep {
-                Some(p) => p,
-                None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
-                    .map_err(|cause| JobError::DecodeCached { dir: cache.dir().into(), cause })?,
-            };
+    if !needs_photons {
+        let hits = prepared_cache::Hits { scene: scene_hit, photons: false };
+        return Ok((job(scene_blob, None), Some(hits), None));
+    }
+    let prep = match prep {
+        Some(p) => p,
+        None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
+            .map_err(|cause| JobError::DecodeCached { dir: cache.dir().into(), cause })?,
+    };
+    let decision = delivery(&prep);
+    if decision.mode != MapDelivery::Ship {
+        let hits = prepared_cache::Hits { scene: scene_hit, photons: false };
+        return Ok((job(scene_blob, None), Some(hits), Some(decision)));
+    }
+    let cached_photons = cache.load(&keys.photons, "photons");
+    let hits = prepared_cache::Hits { scene: scene_hit, photons: cached_photons.is_some() };
+    let photons = match cached_photons {
+        Some(bytes) => Some(bytes),
+        None => {
             let prep = prep.with_photon_maps(scene_path)?;
             let bytes = prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?;
             if let Some(b) = &bytes {
@@ -190,7 +215,7 @@ pub fn prepare_job(
             bytes
         }
     };
-    Ok((Job::new(scene_blob, photons, frame, (width, height), &settings), Some(hits)))
+    Ok((job(scene_blob, photons), Some(hits), Some(decision)))
 }
 
 /// Where an interrupted render keeps its finished strips.

@@ -6,7 +6,7 @@
 //! scheduler, validates strips and assembles the image. [`session`] is one worker's side of the wire: connect,
 //! hello, blob upload in chunks, strip fetch, and the classification of a failed strip. [`job`] is what a render
 //! ships (the blobs and frame of a prepared scene, prepared through the cache) and what an interrupted one
-//! leaves for `--resume`. [`fleet`] finds the workers: a host list, an address list, worker processes on
+//! leaves for `--resume`. [`delivery`] decides whether a job's photon maps are shipped to the workers or traced by each of them. [`fleet`] finds the workers: a host list, an address list, worker processes on
 //! loopback, or a worker server inside this process (the default, so a render on one machine takes the same
 //! path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of an unchanged
 //! scene. [`report`] is what the user reads: warnings during the render, the worker table and the summary line.
@@ -17,6 +17,7 @@
 
 pub mod cli;
 pub mod commands;
+pub mod delivery;
 pub mod farm;
 pub mod fleet;
 pub mod job;

@@ -1,6 +1,7 @@
 //! What a render tells the user at the end: one line per worker ([`WorkerReport`], printed by
 //! [`print_workers`]) and the summary line of `render` ([`Summary`]).
 
+use crate::delivery::MapDelivery;
 use crate::farm::Outcome;
 use crate::prepared_cache::Hits;
 use photon_core::scene::{Integrator, RenderSettings};
@@ -104,6 +105,8 @@ pub struct Summary<'a> {
     pub assemble_s: f64,
     /// Which prepared blobs came from the cache, when there is one.
     pub hits: Option<Hits>,
+    /// How the workers got the photon maps, for the methods that read them.
+    pub delivery: Option<crate::delivery::Decision>,
 }
 
 impl Summary<'_> {
@@ -118,9 +121,14 @@ impl Summary<'_> {
                 "{} passes of {} photon paths ({} paths traced on the workers)",
                 ph.passes, ph.pass_photons, outcome.photon_paths
             ),
-            Integrator::PhotonMap | Integrator::FinalGather => {
-                format!("{} spp, photon maps of {} paths traced when preparing", settings.spp, ph.global)
-            }
+            Integrator::PhotonMap | Integrator::FinalGather => match self.delivery {
+                Some(d) if d.mode == MapDelivery::Trace => format!(
+                    "{} spp, photon maps {d}: {} paths traced on the workers",
+                    settings.spp, outcome.photon_paths
+                ),
+                Some(d) => format!("{} spp, photon maps of {} paths {d}", settings.spp, ph.global),
+                None => format!("{} spp, photon maps of {} paths traced here", settings.spp, ph.global),
+            },
             _ => format!("{} spp", settings.spp),
         };
         let units = if settings.integrator == Integrator::Progressive { "pass blocks" } else { "strips" };
@@ -129,7 +137,7 @@ impl Summary<'_> {
         if let Some(h) = self.hits {
             let word = |hit: bool| if hit { "cached" } else { "built" };
             extras.push_str(&format!(", scene {}", word(h.scene)));
-            if settings.integrator.needs_photon_maps() {
+            if settings.integrator.needs_photon_maps() && self.delivery.is_none_or(|d| d.mode == MapDelivery::Ship) {
                 extras.push_str(&format!(", photons {}", word(h.photons)));
             }
         }

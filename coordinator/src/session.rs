@@ -211,28 +211,7 @@ pub async fn open(
 
 /// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
 pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), SessionError> {
-    let request = pb::HelloRequest {
-        protocol_version: photon_proto::PROTOCOL_VERSION,
-        build_id: photon_proto::BUILD_ID.to_owned(),
-        crate_version: photon_proto::CRATE_VERSION.to_owned(),
-    };
-    // A peer that accepts the connection and never answers must not hang the render.
-    let hello = tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))
-        .await
-        .map_err(|_| SessionError::HelloTimeout)?
-        .map_err(|s| {
-            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer: as
-            // a transport error, or, when the close comes while the call waits (hyper), as a cancelled call,
-            // which the coordinator never makes of a hello itself.
-            let hint = match s.code() {
-                Code::Unavailable | Code::Unknown | Code::Internal | Code::Cancelled => {
-                    " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
-                }
-                _ => "",
-            };
-            SessionError::Refused { status: status_line(&s), hint }
-        })?
-        .into_inner();
+    let hello = hello(client).await?;
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
     let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
         .await
@@ -251,6 +230,32 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
         shipped += put_blob(client, &id, blob.clone()).await?;
     }
     Ok((hello, shipped))
+}
+
+/// Says hello: the worker answers with what it is, or refuses another protocol or build (or a wrong token).
+pub async fn hello(client: &mut Client) -> Result<pb::HelloReply, SessionError> {
+    let request = pb::HelloRequest {
+        protocol_version: photon_proto::PROTOCOL_VERSION,
+        build_id: photon_proto::BUILD_ID.to_owned(),
+        crate_version: photon_proto::CRATE_VERSION.to_owned(),
+    };
+    // A peer that accepts the connection and never answers must not hang the render.
+    tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))
+        .await
+        .map_err(|_| SessionError::HelloTimeout)?
+        .map(tonic::Response::into_inner)
+        .map_err(|s| {
+            // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer: as
+            // a transport error, or, when the close comes while the call waits (hyper), as a cancelled call,
+            // which the coordinator never makes of a hello itself.
+            let hint = match s.code() {
+                Code::Unavailable | Code::Unknown | Code::Internal | Code::Cancelled => {
+                    " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
+                }
+                _ => "",
+            };
+            SessionError::Refused { status: status_line(&s), hint }
+        })
 }
 
 /// Uploads one blob in chunks of at most [`photon_proto::MAX_CHUNK`] bytes, copied one at a time as the stream

@@ -123,6 +123,17 @@ struct Job {
     prep: Prepared,
 }
 
+/// What making a job cost this worker: decoding its blobs, and tracing its photon maps when it traced them.
+#[derive(Clone, Copy, Debug, Default)]
+struct Load {
+    /// Seconds spent decoding the blobs (and rebuilding received photon maps' trees).
+    seconds: f64,
+    /// Photon paths traced for the job's maps (0 when they were received).
+    photon_paths: u64,
+    /// Seconds spent tracing those paths and building their maps.
+    photon_seconds: f64,
+}
+
 /// The render service.
 pub struct Worker {
     config: Config,
@@ -291,9 +302,19 @@ pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Fram
         )));
     }
     let method = frame.settings.integrator;
-    if method.needs_photon_maps() == r.photons_blob.is_empty() {
-        let (needs, sent) =
-            if r.photons_blob.is_empty() { ("needs", "none was sent") } else { ("needs no", "one was sent") };
+    if r.trace_photons && !r.photons_blob.is_empty() {
+        return Err(Status::invalid_argument(
+            "trace_photons: the worker is asked to trace the photon maps and is sent them too; expected one or the \
+             other",
+        ));
+    }
+    let maps_given = !r.photons_blob.is_empty() || r.trace_photons;
+    if method.needs_photon_maps() != maps_given {
+        let (needs, sent) = if maps_given {
+            ("needs no", "a photons blob or trace_photons was sent")
+        } else {
+            ("needs", "neither a photons blob nor trace_photons was sent")
+        };
         return Err(Status::invalid_argument(format!(
             "photons_blob: the frame's method `{method}` {needs} photon maps, and {sent}"
         )));
@@ -545,15 +566,18 @@ struct StripContext {
 type Event_ = Result<pb::StripEvent, Status>;
 
 impl StripContext {
-    /// The job of a request: from the cache, or decoded from its blobs; with the seconds spent decoding.
-    fn job(&self, r: &pb::StripRequest) -> Result<(Arc<Job>, f64), Status> {
-        let key = [r.scene_blob.clone(), r.photons_blob.clone(), photon_proto::blob_id(&r.frame)];
+    /// The job of a request: from the cache, or decoded from its blobs (with its photon maps traced here when
+    /// the request says so), on this worker's threads; with what that cost (nothing for a cached job).
+    fn job(&self, r: &pb::StripRequest) -> Result<(Arc<Job>, Load), Status> {
+        // A traced map and a received one are the same bits, but keep the jobs apart all the same.
+        let photons = if r.trace_photons { "traced".to_owned() } else { r.photons_blob.clone() };
+        let key = [r.scene_blob.clone(), photons, photon_proto::blob_id(&r.frame)];
         // A panic while the lock was held (a bug, caught by `render_guarded`) leaves a list of whole jobs.
         let mut jobs = self.jobs.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some(i) = jobs.iter().position(|j| j.key == key) {
             let job = jobs.remove(i);
             jobs.push(job.clone());
-            return Ok((job, 0.0));
+            return Ok((job, Load::default()));
         }
         let t0 = Instant::now();
         let blob = |id: &str| {
@@ -561,8 +585,23 @@ impl StripContext {
         };
         let scene = blob(&r.scene_blob)?;
         let photons = if r.photons_blob.is_empty() { None } else { Some(blob(&r.photons_blob)?) };
-        let prep = Prepared::from_blobs(&scene, photons.as_deref().map(Vec::as_slice), &r.frame, usize::MAX)
+        let photons = photons.as_deref().map(Vec::as_slice);
+        let mut prep = self
+            .pool
+            .install(|| Prepared::from_blobs(&scene, photons, &r.frame, usize::MAX))
             .map_err(|e| Status::invalid_argument(format!("the job's blobs do not decode: {e}")))?;
+        let mut load = Load { seconds: t0.elapsed().as_secs_f64(), ..Load::default() };
+        if r.trace_photons {
+            let t1 = Instant::now();
+            // Deterministic streams: the same maps as the coordinator would have traced and shipped.
+            let maps = self
+                .pool
+                .install(|| prep.build_photon_maps())
+                .map_err(|e| Status::invalid_argument(format!("the job's photon maps cannot be built: {e}")))?;
+            load.photon_paths = prep.photon_map_paths();
+            load.photon_seconds = t1.elapsed().as_secs_f64();
+            prep.photons = Some(maps);
+        }
         if prep.settings.integrator.needs_photon_maps() && prep.photons.is_none() {
             return Err(Status::invalid_argument(format!(
                 "the method `{}` needs photon maps and the photons blob holds none",
@@ -574,7 +613,7 @@ impl StripContext {
         if jobs.len() > Worker::JOBS_KEPT {
             jobs.remove(0);
         }
-        Ok((job, t0.elapsed().as_secs_f64()))
+        Ok((job, load))
     }
 
     /// [`StripContext::render`], with a panic (a bug: every request was checked before) turned into an
@@ -600,7 +639,7 @@ impl StripContext {
     /// Renders the strip, sending progress on `tx` as it goes; returns the pixel and summary events.
     fn render(&self, r: &pb::StripRequest, tx: &mpsc::Sender<Event_>) -> Result<Vec<Event_>, Status> {
         // The rows and passes were checked against this frame by `check_strip_request` before the call started.
-        let (job, load_seconds) = self.job(r)?;
+        let (job, load) = self.job(r)?;
         let width = job.prep.camera.width;
         tracing::info!(strip = r.strip, attempt = r.attempt, rows = ?(r.row_start..r.row_end), "rendering strip");
         if self.panic
@@ -657,7 +696,9 @@ impl StripContext {
             (photon_proto::pixels_to_bytes(&pixels), 4, summary)
         };
         summary.render_seconds = t0.elapsed().as_secs_f64();
-        summary.load_seconds = load_seconds;
+        summary.load_seconds = load.seconds;
+        summary.photon_paths += load.photon_paths;
+        summary.photon_seconds += load.photon_seconds;
         let checksum = photon_proto::checksum(&bytes).to_vec();
         let corrupt = if self.panic {
             Err(0)

@@ -109,10 +109,11 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
             attempt: rng.next() as u32,
             pass_start: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
             pass_end: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
+            trace_photons: rng.below(2) == 0,
         };
         if mode == 3 {
             // A well-formed request of the base frame (48 rows, path tracing: no photons blob, no passes).
-            (r.scene_blob, r.photons_blob) = (id.clone(), String::new());
+            (r.scene_blob, r.photons_blob, r.trace_photons) = (id.clone(), String::new(), false);
             (r.pass_start, r.pass_end) = (0, 0);
             r.row_start = rng.below(48) as u32;
             r.row_end = r.row_start + 1 + rng.below(u64::from(48 - r.row_start)) as u32;
@@ -126,7 +127,9 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
                 let rows = r.row_end - r.row_start;
                 let bytes = MemoryEstimate::strip(w, rows, &frame.settings, limits.threads).total();
                 assert!(bytes <= limits.strip_memory_bytes, "case {case}: {bytes} bytes accepted");
-                assert_eq!(frame.settings.integrator.needs_photon_maps(), !r.photons_blob.is_empty());
+                // Photon maps come one way or the other when, and only when, the method reads them.
+                let maps = usize::from(!r.photons_blob.is_empty()) + usize::from(r.trace_photons);
+                assert_eq!(usize::from(frame.settings.integrator.needs_photon_maps()), maps, "case {case}");
                 let passes = r.pass_start..r.pass_end;
                 if frame.settings.integrator == photon_core::scene::Integrator::Progressive {
                     assert!(!passes.is_empty() && passes.end <= frame.settings.photons.passes, "case {case}");

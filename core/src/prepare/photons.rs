@@ -199,6 +199,19 @@ impl Prepared {
         if self.settings.integrator.needs_photon_maps() { self.build_photon_maps().map(Some) } else { Ok(None) }
     }
 
+    /// Whether the method reads a caustic map: `final-gather` on a scene with a mirror or glass.
+    fn needs_caustic_map(&self) -> bool {
+        self.settings.integrator == Integrator::FinalGather && self.materials.iter().any(Material::has_specular)
+    }
+
+    /// The photon paths [`Prepared::build_photon_maps`] traces: the global map's, and the caustic map's when the
+    /// method has one (each at least one per powered light, [`paths_per_light`]).
+    pub fn photon_map_paths(&self) -> u64 {
+        let ph = &self.settings.photons;
+        let paths = |n: u32| paths_per_light(self, u64::from(n)).iter().sum::<u64>();
+        paths(ph.global) + if self.needs_caustic_map() { paths(ph.caustic) } else { 0 }
+    }
+
     /// Traces and builds the photon maps of the method: the global map, and the caustic map for
     /// `final-gather` when some material has a delta (mirror or glass) component.
     pub fn build_photon_maps(&self) -> Result<PhotonMaps, PhotonMapError> {
@@ -206,9 +219,7 @@ impl Prepared {
         let global = trace_photons(self, u64::from(ph.global), 0, PhotonKind::Global);
         tracing::info!(paths = global.paths, photons = global.photons.len(), "global photon map traced");
         let global = PhotonMap::build(global.photons)?;
-        let caustic = if self.settings.integrator == Integrator::FinalGather
-            && self.materials.iter().any(Material::has_specular)
-        {
+        let caustic = if self.needs_caustic_map() {
             // Pass index 1 keeps the caustic streams apart from the global ones.
             let c = trace_photons(self, u64::from(ph.caustic), 1, PhotonKind::Caustic);
             tracing::info!(paths = c.paths, photons = c.photons.len(), "caustic photon map traced");

@@ -1,0 +1,278 @@
+//! How each worker gets a job's photon maps: **shipped** from the coordinator (which traces them once, builds
+//! them and uploads the blob to every worker), or **traced** by every worker itself from the deterministic
+//! photon streams (only the scene blob travels). Both give the same maps, bit for bit, so the image does not
+//! depend on the choice; only the time does.
+//!
+//! [`choose`] decides per job from a cost model calibrated on this machine: it traces a sample of the job's
+//! photon paths here, builds, encodes and decodes their map, and scales the measured costs to the job
+//! ([`Calibration`]). For each mode the model gives the mean time until a worker holds its maps
+//! ([`Estimate`]):
+//!
+//! - ship: `(P·t_path + build(n)) / T_c + encode(B) + (N+1)/2 · B/link + mean_w (decode(B) + build(n)) / T_w`,
+//!   the uploads sharing the coordinator's link, so the i-th worker waits for i blobs;
+//! - trace: `mean_w (P·t_path + build(n)) / T_w`,
+//!
+//! with `P` photon paths of `n` photons in a blob of `B` bytes, `T_c` threads here, `N` workers of `T_w`
+//! threads, and `build(n) ∝ n log n` (sorting and the kd-tree). Tracing and building are taken to scale
+//! linearly with threads, which favours neither mode. The link is loopback for in-process and `--local`
+//! workers (300 MB/s, measured in docs/RESULTS.md "Shipping photon maps") and 1 Gbit/s (125 MB/s) for
+//! remote ones.
+
+use crate::session::{self, WorkerAddr};
+use photon_core::codec;
+use photon_core::photon::{PhotonMap, PhotonMaps};
+use photon_core::prepare::Prepared;
+use photon_core::prepare::photons::{PhotonKind, trace_photons};
+use std::fmt;
+use std::time::{Duration, Instant};
+
+/// How workers get the photon maps (`--photon-maps`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MapDelivery {
+    /// Chosen per job by the cost model.
+    Auto,
+    /// Traced here once and shipped to every worker.
+    Ship,
+    /// Traced by every worker itself.
+    Trace,
+}
+
+/// Bytes per second of a loopback upload (docs/RESULTS.md, "Shipping photon maps": 300–334 MB/s).
+pub const LOOPBACK_BYTES_PER_S: f64 = 300e6;
+
+/// Bytes per second of a lab's link: 1 Gbit/s.
+pub const LINK_BYTES_PER_S: f64 = 125e6;
+
+/// The most photon paths traced to calibrate the model (an eighth of the job's when that is fewer).
+pub const SAMPLE_PATHS: u64 = 40_000;
+
+/// Costs measured on this machine from a sample of the job's photon paths, per unit and per thread.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Calibration {
+    /// Seconds of one thread per photon path traced.
+    pub trace_s_per_path: f64,
+    /// Photons stored per path.
+    pub photons_per_path: f64,
+    /// Seconds of one thread per `n log₂ n` to sort `n` photons and build their kd-tree.
+    pub build_s_per_nlogn: f64,
+    /// Blob bytes per photon.
+    pub bytes_per_photon: f64,
+    /// Seconds per blob byte to encode.
+    pub encode_s_per_byte: f64,
+    /// Seconds per blob byte to decode (the photons only; the tree's rebuild is `build`).
+    pub decode_s_per_byte: f64,
+}
+
+/// The workers as the model sees them.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Farm {
+    /// Threads of each worker.
+    pub worker_threads: Vec<u32>,
+    /// Threads of this machine, which traces and builds the maps it ships.
+    pub coordinator_threads: u32,
+    /// Bytes per second of the coordinator's link, which the uploads share.
+    pub link_bytes_per_s: f64,
+}
+
+/// The model's mean seconds until a worker holds the maps, for each mode.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    /// Shipped from here.
+    pub ship_s: f64,
+    /// Traced by each worker.
+    pub trace_s: f64,
+}
+
+/// What was chosen, and why.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Decision {
+    /// [`MapDelivery::Ship`] or [`MapDelivery::Trace`].
+    pub mode: MapDelivery,
+    /// Whether `--photon-maps` forced it.
+    pub forced: bool,
+    /// The model's estimate (none when forced).
+    pub estimate: Option<Estimate>,
+}
+
+impl Calibration {
+    /// Measures the costs by tracing a sample of the job's `paths` (an eighth, between 1000 and
+    /// [`SAMPLE_PATHS`]) global photon paths of `prep` on the current
+    /// rayon pool, building their map, and encoding and decoding it. `None` when the sample stores no photon
+    /// (a scene whose light reaches no surface: either mode is then free).
+    pub fn measure(prep: &Prepared, paths: u64) -> Option<Self> {
+        // An eighth of the job at most, so that measuring costs little beside the work it decides.
+        let sample = (paths / 8).clamp(1000, SAMPLE_PATHS).min(paths.max(1));
+        let threads = rayon::current_num_threads() as f64;
+        let t = Instant::now();
+        // Stream index 7 keeps the sample apart from the real maps' streams (only its costs are used).
+        let traced = trace_photons(prep, sample, 7, PhotonKind::Global);
+        let trace_s = t.elapsed().as_secs_f64() * threads;
+        let n = traced.photons.len();
+        if n < 2 {
+            return None;
+        }
+        let t = Instant::now();
+        let map = PhotonMap::build(traced.photons).ok()?;
+        let build_s = t.elapsed().as_secs_f64() * threads;
+        let maps = PhotonMaps { global: map, caustic: None, estimator: prep.estimator(), irradiance: None };
+        let t = Instant::now();
+        let blob = codec::encode(&maps).ok()?;
+        let encode_s = t.elapsed().as_secs_f64();
+        let t = Instant::now();
+        codec::decode::<PhotonMaps>(&blob, blob.len()).ok()?;
+        // The decode rebuilds the (already sorted) tree on the whole pool: count that part as build.
+        let decode_s = (t.elapsed().as_secs_f64() - build_s / threads).max(0.0);
+        let nf = n as f64;
+        Some(Self {
+            trace_s_per_path: trace_s / sample as f64,
+            photons_per_path: nf / sample as f64,
+            build_s_per_nlogn: build_s / (nf * nf.log2()),
+            bytes_per_photon: blob.len() as f64 / nf,
+            encode_s_per_byte: encode_s / blob.len() as f64,
+            decode_s_per_byte: decode_s / blob.len() as f64,
+        })
+    }
+
+    /// The model's estimate for `paths` photon paths on `farm` (formulas in the module documentation).
+    pub fn estimate(&self, paths: u64, farm: &Farm) -> Estimate {
+        let p = paths as f64;
+        let n = (p * self.photons_per_path).max(2.0);
+        let bytes = n * self.bytes_per_photon;
+        let trace = p * self.trace_s_per_path;
+        let build = self.build_s_per_nlogn * n * n.log2();
+        let threads_c = f64::from(farm.coordinator_threads.max(1));
+        let workers = farm.worker_threads.len().max(1) as f64;
+        let mean_over_workers = |f: &dyn Fn(f64) -> f64| {
+            let sum: f64 = farm.worker_threads.iter().map(|&t| f(f64::from(t.max(1)))).sum();
+            sum / workers
+        };
+        let prepare = (trace + build) / threads_c + self.encode_s_per_byte * bytes;
+        let upload = (workers + 1.0) / 2.0 * bytes / farm.link_bytes_per_s;
+        let load = mean_over_workers(&|t| self.decode_s_per_byte * bytes + build / t);
+        Estimate { ship_s: prepare + upload + load, trace_s: mean_over_workers(&|t| (trace + build) / t) }
+    }
+}
+
+/// Decides how the workers of `farm` get the maps of `prep` (whose settings say how many paths), measuring
+/// the costs here when `requested` is [`MapDelivery::Auto`].
+pub fn choose(requested: MapDelivery, prep: &Prepared, farm: &Farm) -> Decision {
+    if requested != MapDelivery::Auto {
+        return Decision { mode: requested, forced: true, estimate: None };
+    }
+    let paths = prep.photon_map_paths();
+    let Some(calibration) = Calibration::measure(prep, paths) else {
+        return Decision { mode: MapDelivery::Trace, forced: false, estimate: None };
+    };
+    let estimate = calibration.estimate(paths, farm);
+    tracing::info!(?calibration, ?estimate, "photon-map delivery model");
+    let mode = if estimate.trace_s <= estimate.ship_s { MapDelivery::Trace } else { MapDelivery::Ship };
+    Decision { mode, forced: false, estimate: Some(estimate) }
+}
+
+/// The thread count of each worker that answers a hello within `patience` (the model's view of a remote farm;
+/// a worker that does not answer is left out, and the render reports it as usual).
+pub async fn probe_threads(
+    addrs: &[WorkerAddr],
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Vec<u32> {
+    let mut hellos = tokio::task::JoinSet::new();
+    for (i, a) in addrs.iter().enumerate() {
+        let (uri, token, tls_ca) = (a.uri.clone(), token.map(str::to_owned), tls_ca.map(<[u8]>::to_vec));
+        hellos.spawn(async move {
+            let hello = async {
+                let mut client = session::connect(&uri, token.as_deref(), tls_ca.as_deref(), Duration::ZERO).await?;
+                session::hello(&mut client).await
+            };
+            (i, tokio::time::timeout(patience, hello).await.ok().and_then(Result::ok))
+        });
+    }
+    let mut threads = vec![None; addrs.len()];
+    while let Some(Ok((i, hello))) = hellos.join_next().await {
+        threads[i] = hello.map(|h| h.threads);
+    }
+    threads.into_iter().flatten().collect()
+}
+
+impl fmt::Display for Decision {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let what = match self.mode {
+            MapDelivery::Trace => "traced by each worker",
+            _ => "traced here and shipped",
+        };
+        match (self.forced, self.estimate) {
+            (true, _) => write!(f, "{what} (--photon-maps)"),
+            (false, Some(e)) => write!(f, "{what} (modelled {:.2} s traced, {:.2} s shipped)", e.trace_s, e.ship_s),
+            (false, None) => write!(f, "{what}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn calibration() -> Calibration {
+        // Roughly this machine's costs (docs/RESULTS.md, "Photon maps without a serial bottleneck").
+        Calibration {
+            trace_s_per_path: 1.5e-6,
+            photons_per_path: 1.67,
+            build_s_per_nlogn: 2.0e-8,
+            bytes_per_photon: 36.0,
+            encode_s_per_byte: 2.5e-9,
+            decode_s_per_byte: 5e-9,
+        }
+    }
+
+    fn farm(workers: &[u32], coordinator: u32, link: f64) -> Farm {
+        Farm { worker_threads: workers.to_vec(), coordinator_threads: coordinator, link_bytes_per_s: link }
+    }
+
+    #[test]
+    fn one_worker_as_strong_as_the_coordinator_traces_for_itself() {
+        // The same work either way, but shipping adds encoding, the upload and decoding.
+        let e = calibration().estimate(1_000_000, &farm(&[8], 8, LOOPBACK_BYTES_PER_S));
+        assert!(e.trace_s < e.ship_s, "{e:?}");
+    }
+
+    #[test]
+    fn weak_workers_get_costly_maps_shipped() {
+        // Sixteen one-thread workers beside a 16-thread coordinator, on a scene whose paths cost ten times the
+        // Cornell box's for the photons they store (long paths through glass): each worker would trace every
+        // path on one thread, while the coordinator traces them once on sixteen.
+        let costly = Calibration { trace_s_per_path: 1.5e-5, ..calibration() };
+        let e = costly.estimate(4_000_000, &farm(&[1; 16], 16, LOOPBACK_BYTES_PER_S));
+        assert!(e.ship_s < e.trace_s, "{e:?}");
+        // With the Cornell box's cost per path, shipping 16 blobs through one loopback link costs more.
+        let e = calibration().estimate(4_000_000, &farm(&[1; 16], 16, LOOPBACK_BYTES_PER_S));
+        assert!(e.trace_s < e.ship_s, "{e:?}");
+    }
+
+    #[test]
+    fn a_lab_behind_one_link_traces() {
+        // 52 machines of 4–96 threads behind 1 Gbit/s: 52 uploads of a big map cost more than tracing it.
+        let mut lab = vec![6; 20];
+        lab.extend([4; 30]);
+        lab.extend([32, 96]);
+        let e = calibration().estimate(4_000_000, &farm(&lab, 6, LINK_BYTES_PER_S));
+        assert!(e.trace_s < e.ship_s, "{e:?}");
+        // Shipping grows with the number of workers, tracing does not.
+        let two = calibration().estimate(4_000_000, &farm(&[6, 6], 6, LINK_BYTES_PER_S));
+        assert!(e.ship_s > 5.0 * two.ship_s && (e.trace_s - two.trace_s).abs() < two.trace_s, "{e:?} {two:?}");
+    }
+
+    #[test]
+    fn the_calibration_measures_the_scene() {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+        let scene = photon_core::scene::Scene::load(&path).unwrap();
+        let prep = Prepared::new(&scene, &path).unwrap();
+        let c = Calibration::measure(&prep, 10_000).unwrap();
+        // Every photon of a map is 36 bytes; the closed Cornell box stores more than one photon per path.
+        assert!((c.bytes_per_photon - 36.0).abs() < 0.5, "{c:?}");
+        assert!(c.photons_per_path > 1.0 && c.photons_per_path < 10.0, "{c:?}");
+        assert!(c.trace_s_per_path > 0.0 && c.build_s_per_nlogn > 0.0 && c.encode_s_per_byte > 0.0, "{c:?}");
+        let forced = choose(MapDelivery::Ship, &prep, &farm(&[1], 1, LINK_BYTES_PER_S));
+        assert_eq!((forced.mode, forced.forced, forced.estimate), (MapDelivery::Ship, true, None));
+    }
+}
