@@ -4,13 +4,13 @@
 #
 #   bash deploy/two-workers.sh [SCENE] [extra render options...]
 #
-# Default scene: scenes/cornell.toml at 256x256, 16 spp. Output in ./two-workers/.
+# Default scene: scenes/cornell.toml at 256x256, path traced at 16 spp. Output in ./two-workers/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scene=${1:-scenes/cornell.toml}
 shift || true
 extra=("$@")
-if [ ${#extra[@]} -eq 0 ]; then extra=(--size 256x256 --spp 16); fi
+if [ ${#extra[@]} -eq 0 ]; then extra=(--size 256x256 --integrator path --spp 16); fi
 
 cargo build --release -q -p photon-coordinator -p photon-worker
 bin=target/release

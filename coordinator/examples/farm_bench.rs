@@ -175,6 +175,7 @@ fn main() {
     scene.camera.width = 1;
     scene.camera.height = rows;
     scene.render.spp = 1;
+    scene.render.integrator = Integrator::Path;
     let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
     let job = job_of(&prep);
     let mut rates = Vec::new();

@@ -14,6 +14,7 @@ fn cornell() -> Prepared {
     scene.camera.width = 40;
     scene.camera.height = 30;
     scene.render.spp = 4;
+    scene.render.integrator = photon_core::scene::Integrator::Path;
     Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap()
 }
 

@@ -8,14 +8,15 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::process::{Command, Output};
 
-/// Renders the Cornell box to `dir/name` (EXR) at `size` with 4 spp and `seed`.
+/// Renders the Cornell box to `dir/name` (EXR) at `size` with the path tracer at 4 spp and `seed`.
 fn render(dir: &Path, name: &str, size: &str, seed: u64) {
     let scene = scenes_dir().join("cornell.toml");
     let out = Command::new(coordinator())
         .current_dir(dir)
         .arg("render")
         .arg(&scene)
-        .args(["-o", name, "--size", size, "--spp", "4", "--seed", &seed.to_string(), "-q", "--threads", "1"])
+        .args(["-o", name, "--size", size, "--integrator", "path", "--spp", "4", "--seed", &seed.to_string()])
+        .args(["-q", "--threads", "1"])
         .output()
         .unwrap();
     assert!(out.status.success(), "render failed: {}", String::from_utf8_lossy(&out.stderr));

@@ -19,13 +19,14 @@ async fn client(w: &WorkerProcess) -> RenderClient<Channel> {
     RenderClient::new(channel)
 }
 
-/// A small real job: the Cornell box at 8 × 4 pixels, 4 samples.
+/// A small real job: the Cornell box at 8 × 4 pixels, path traced at 4 samples.
 fn job() -> Prepared {
     let path = photon_tests::scenes_dir().join("cornell.toml");
     let mut scene = Scene::load(&path).unwrap();
     scene.camera.width = 8;
     scene.camera.height = 4;
     scene.render.spp = 4;
+    scene.render.integrator = Integrator::Path;
     Prepared::new(&scene, &path).unwrap()
 }
 

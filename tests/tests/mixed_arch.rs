@@ -151,7 +151,7 @@ fn a_render_that_mixes_math_modes_says_so() {
     let o = render(
         "cornell.toml",
         &dir.join("out.exr"),
-        &["--size", "32x24", "--spp", "1"],
+        &["--size", "32x24", "--integrator", "path", "--spp", "1"],
         &format!("{},{}", a.addr, b.addr),
     );
     let stderr = String::from_utf8_lossy(&o.stderr);

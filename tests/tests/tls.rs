@@ -19,7 +19,7 @@ fn certs(dir: &Path, hosts: &[&str]) {
 fn render(dir: &Path, name: &str, extra: &[&str]) -> Output {
     let mut cmd = Command::new(coordinator());
     cmd.arg("render").arg(scenes_dir().join("cornell.toml")).arg("-o").arg(dir.join(name));
-    cmd.args(["-q", "--no-cache", "--size", "32x24", "--spp", "2"]).args(extra);
+    cmd.args(["-q", "--no-cache", "--size", "32x24", "--integrator", "path", "--spp", "2"]).args(extra);
     run_with_timeout(&mut cmd, Duration::from_secs(120))
 }
 

@@ -121,6 +121,7 @@ async fn rows_outside_the_image_are_refused() {
     let mut scene = photon_core::scene::Scene::load(&path).unwrap();
     scene.camera.width = 8;
     scene.camera.height = 4;
+    scene.render.integrator = photon_core::scene::Integrator::Path; // a strip of rows, not a block of passes
     let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
     let blob = prep.encode_scene().unwrap();
     let id = photon_proto::blob_id(&blob);
