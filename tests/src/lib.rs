@@ -145,16 +145,7 @@ impl WorkerProcess {
 
     /// Waits until the worker's log has shown `n` lines containing `needle` (panics after `timeout`).
     pub fn wait_for_log(&self, needle: &str, n: usize, timeout: Duration) {
-        let end = Instant::now() + timeout;
-        let mut seen = 0;
-        while seen < n {
-            let left = end.saturating_duration_since(Instant::now());
-            match self.log.recv_timeout(left) {
-                Ok(line) if line.contains(needle) => seen += 1,
-                Ok(_) => {}
-                Err(e) => panic!("saw `{needle}` {seen} of {n} times in the worker's log: {e}"),
-            }
-        }
+        wait_for_lines(&self.log, needle, n, timeout, "the worker's log");
     }
 
     /// Kills the process at once (SIGKILL on Unix), as a crash would.
@@ -174,6 +165,21 @@ impl WorkerProcess {
 impl Drop for WorkerProcess {
     fn drop(&mut self) {
         self.kill();
+    }
+}
+
+/// Reads `lines` until `n` of them contained `needle`; panics after `timeout` or when the lines end, naming
+/// `source`.
+fn wait_for_lines(lines: &Receiver<String>, needle: &str, n: usize, timeout: Duration, source: &str) {
+    let end = Instant::now() + timeout;
+    let mut seen = 0;
+    while seen < n {
+        let left = end.saturating_duration_since(Instant::now());
+        match lines.recv_timeout(left) {
+            Ok(line) if line.contains(needle) => seen += 1,
+            Ok(_) => {}
+            Err(e) => panic!("saw `{needle}` {seen} of {n} times in {source}: {e}"),
+        }
     }
 }
 
@@ -247,25 +253,17 @@ impl Running {
         self.child.id()
     }
 
-    /// Sends it a signal by name (`INT`, `TERM`, `STOP`, …) with `kill`.
-    pub fn signal(&self, name: &str) {
+    /// Sends it a signal by name (`INT`, `TERM`, `STOP`, …) with `kill`; returns whether it was delivered
+    /// (`false` once the process has ended).
+    pub fn signal(&self, name: &str) -> bool {
         let status = Command::new("kill").arg(format!("-{name}")).arg(self.pid().to_string()).status();
-        assert!(status.is_ok_and(|s| s.success()), "kill -{name} {} failed", self.pid());
+        status.is_ok_and(|s| s.success())
     }
 
     /// Waits until its standard error has shown `n` lines containing `needle` (panics after `timeout`, or if it
     /// ends first).
     pub fn wait_for_line(&self, needle: &str, n: usize, timeout: Duration) {
-        let end = Instant::now() + timeout;
-        let mut seen = 0;
-        while seen < n {
-            let left = end.saturating_duration_since(Instant::now());
-            match self.lines.recv_timeout(left) {
-                Ok(line) if line.contains(needle) => seen += 1,
-                Ok(_) => {}
-                Err(e) => panic!("saw `{needle}` {seen} of {n} times in {}'s standard error: {e}", self.description),
-            }
-        }
+        wait_for_lines(&self.lines, needle, n, timeout, &format!("{}'s standard error", self.description));
     }
 
     /// Waits for it to end within `timeout` (panics if it runs longer) and returns its outputs.

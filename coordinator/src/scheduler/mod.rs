@@ -156,8 +156,9 @@ impl Scheduler {
     }
 
     /// Takes back a lost worker that answers again (reconnected, and checked as at the start), with the `cores`
-    /// it now announces: it is active again, keeps its numbers, and counts one more rejoin. Returns `false` (and
-    /// changes nothing) unless the worker is [`WorkerState::Lost`].
+    /// it now announces: it is active again, keeps its numbers, and counts one more rejoin. Its speed is measured
+    /// afresh (a restarted worker loads the scene again, and may be another machine at the same address).
+    /// Returns `false` (and changes nothing) unless the worker is [`WorkerState::Lost`].
     pub fn rejoin(&mut self, id: WorkerId, cores: u32) -> bool {
         match self.workers.get_mut(&id) {
             Some(w) if w.stats.state == WorkerState::Lost => {
@@ -166,6 +167,7 @@ impl Scheduler {
                 w.stats.stalled = false;
                 w.stats.rejoins += 1;
                 w.heard = None;
+                w.seconds_per_row = None;
                 true
             }
             _ => false,

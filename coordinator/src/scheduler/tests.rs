@@ -658,6 +658,7 @@ fn a_lost_worker_rejoins_with_its_numbers_and_takes_strips_again() {
     assert!(!s.rejoin(W0, 8), "already back");
     let stats = s.worker_stats(W0).unwrap();
     assert_eq!((stats.state.clone(), stats.cores, stats.strips, stats.rejoins), (WorkerState::Active, 8, 1, 1));
+    assert_eq!(s.seconds_per_row(W0), None, "measured afresh");
     // It takes the strip it held when it was lost (requeued at the front), with a new attempt number; a late
     // result of the old attempt is not accepted.
     let again = s.assign(W0, secs(3.0)).unwrap();
