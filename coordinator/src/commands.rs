@@ -51,9 +51,10 @@ fn render(args: RenderArgs) -> Result<()> {
         (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
         _ => None,
     };
+    // The runtime outlives the render, so that its signal watch still ends the process at a second signal while
+    // the partial file is written. The workers start (and remote ones are asked their threads) before
+    // preparing: how they get the photon maps depends on them.
     let rt = runtime()?;
-    // The workers start (and remote ones are asked their threads) before preparing: how they get the photon
-    // maps depends on them.
     let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
     let model_farm = if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
         Some(rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref())))
@@ -74,9 +75,10 @@ fn render(args: RenderArgs) -> Result<()> {
         token,
         tls_ca,
         rows_per_strip: args.rows_per_strip,
-        policy: Default::default(),
         resume,
         progress: !args.quiet,
+        interrupt: Some(rt.block_on(async { crate::interrupt::watch_signals() })),
+        ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
         let outcome = farm::render(&job, &fleet.addrs, options).await;
@@ -160,9 +162,19 @@ fn render_scene(args: &RenderArgs) -> Result<Scene> {
     Ok(Scene::load_with(&args.scene, &overrides::pairs(&args.set, &args.settings()?))?)
 }
 
-/// Keeps the finished strips of a failed render in the partial file beside the output, and says how to resume.
-/// A fatal failure is not resumable: no worker of this build can render that strip, so it is reported as a bug
-/// of `method`, with no partial file and no `--resume` hint.
+/// A render stopped by a signal: the error `main` reports, with the exit status it ends with.
+#[derive(Debug, thiserror::Error)]
+#[error("{message}")]
+pub struct Interrupted {
+    /// The process's exit status (130 for SIGINT, 143 for SIGTERM).
+    pub exit_code: i32,
+    /// What happened and how to resume.
+    message: String,
+}
+
+/// Keeps the finished strips of a failed or interrupted render in the partial file beside the output, and prints
+/// the command that resumes it. A fatal failure is not resumable: no worker of this build can render that strip,
+/// so it is reported as a bug of `method`, with no partial file and no `--resume` hint.
 fn fail_keeping_partial(output: &Path, e: FarmError, method: Integrator) -> Result<()> {
     if let FarmError::Fatal { workers, .. } = &e {
         print_workers(workers);
@@ -176,15 +188,48 @@ fn fail_keeping_partial(output: &Path, e: FarmError, method: Integrator) -> Resu
     };
     let path = partial_path(output);
     let done = partial.strips.len();
+    let units = if partial.pass_sums.is_some() { "pass blocks" } else { "strips" };
     partial.write(&path)?;
-    if let FarmError::NoWorkers { workers, .. } = &e {
+    if let FarmError::NoWorkers { workers, .. } | FarmError::Interrupted { workers, .. } = &e {
         print_workers(workers);
     }
-    bail!(
-        "{e}\n{done} finished strips are in {}; continue with the same command and `--resume {}`",
+    let message = format!(
+        "{e}\n{done} finished {units} are in {}; continue with:\n  {}",
         path.display(),
-        path.display()
+        resume_command(std::env::args_os(), &path)
     );
+    match e {
+        FarmError::Interrupted { signal, .. } => Err(Interrupted { exit_code: signal.exit_code(), message }.into()),
+        _ => Err(anyhow::Error::msg(message)),
+    }
+}
+
+/// The command line `args` (this process's, program first) with its `--resume` replaced by `--resume partial`,
+/// quoted for a POSIX shell.
+fn resume_command(args: impl IntoIterator<Item = std::ffi::OsString>, partial: &Path) -> String {
+    let mut out = Vec::new();
+    let mut args = args.into_iter();
+    while let Some(arg) = args.next() {
+        let text = arg.to_string_lossy();
+        if text == "--resume" {
+            args.next();
+        } else if !text.starts_with("--resume=") {
+            out.push(shell_quote(&text));
+        }
+    }
+    out.push("--resume".into());
+    out.push(shell_quote(&partial.to_string_lossy()));
+    out.join(" ")
+}
+
+/// `word` as a POSIX shell reads it back: as it is when it holds only safe characters, else in single quotes.
+fn shell_quote(word: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "-_./:=,@%+".contains(c);
+    if !word.is_empty() && word.chars().all(safe) {
+        word.to_owned()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
 }
 
 fn compare(args: CompareArgs) -> Result<()> {
@@ -357,5 +402,19 @@ fn print_metrics(m: &Metrics) {
     ];
     for (label, value) in rows {
         println!("  {label:<26}{value}");
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_resume_command_replaces_an_earlier_resume_and_quotes_for_the_shell() {
+        let args = ["photon-coordinator", "render", "my scene.toml", "-o", "out.exr", "--resume", "old.partial", "-q"];
+        let line = resume_command(args.map(Into::into), Path::new("out.exr.partial"));
+        assert_eq!(line, "photon-coordinator render 'my scene.toml' -o out.exr -q --resume out.exr.partial");
+        let args = ["p", "--resume=x", "it's"];
+        assert_eq!(resume_command(args.map(Into::into), Path::new("o")), "p 'it'\\''s' --resume o");
     }
 }

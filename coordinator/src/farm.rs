@@ -12,11 +12,19 @@
 //! What the user should hear about during the render ([`Warning`]) is collected by the handlers and printed by
 //! the loop.
 //!
+//! A worker whose connection is lost is called again with backoff ([`crate::rejoin`]) while the render goes on;
+//! when it answers it rejoins after the same hello and build-id check as at the start, with the blobs it lacks
+//! shipped again. A worker that holds strips and says nothing past its silence limit is shown as `stalled`. When
+//! no worker is left the render waits [`Options::rejoin_patience`] for one to come back before it gives up.
+//! SIGINT or SIGTERM ([`crate::interrupt`]) stops the render as a failure does: the strips in flight are
+//! cancelled and the finished ones kept for `--resume` ([`FarmError::Interrupted`]).
+//!
 //! A result is accepted only if it covers exactly the strip's rows in order, has the right number of floats,
 //! every value finite and non-negative, and hashes to the checksum the worker computed before sending. A copy
 //! that loses the race, or a worker's strips when it is declared lost or dropped, are cancelled by dropping
 //! their calls (the worker then stops rendering them).
 
+use crate::interrupt::{Interrupt, Interrupts, interrupted};
 use crate::job::{Job, Partial};
 use crate::report::{Warning, WorkerReport, progress_bar};
 use crate::scheduler::{
@@ -32,7 +40,7 @@ use tokio::sync::mpsc::{self, UnboundedSender};
 use tokio::task::{AbortHandle, JoinHandle};
 
 /// How to render.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Options {
     /// The shared token, sent with every call.
     pub token: Option<String>,
@@ -47,6 +55,28 @@ pub struct Options {
     pub resume: Option<Partial>,
     /// Show a progress bar.
     pub progress: bool,
+    /// Signals that stop the render, keeping the finished strips ([`crate::interrupt::watch_signals`]).
+    pub interrupt: Option<Interrupts>,
+    /// How long the render waits, once no worker is left, for a lost one to come back before it gives up.
+    pub rejoin_patience: Duration,
+}
+
+/// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
+pub const REJOIN_PATIENCE: Duration = Duration::from_secs(15);
+
+impl Default for Options {
+    fn default() -> Self {
+        Self {
+            token: None,
+            tls_ca: None,
+            rows_per_strip: None,
+            policy: Policy::default(),
+            resume: None,
+            progress: false,
+            interrupt: None,
+            rejoin_patience: REJOIN_PATIENCE,
+        }
+    }
 }
 
 /// A finished render.
@@ -94,35 +124,47 @@ pub enum FarmError {
     /// The job does not fit the partial file given to resume.
     #[error("{0}")]
     Resume(String),
+    /// A signal stopped the render.
+    #[error("interrupted by {signal}")]
+    Interrupted {
+        /// Which.
+        signal: Interrupt,
+        /// What was finished.
+        partial: Box<Partial>,
+        /// Per-worker lines.
+        workers: Vec<WorkerReport>,
+    },
 }
 
 impl FarmError {
     /// The finished strips, when there are any worth keeping.
     pub fn partial(&self) -> Option<&Partial> {
         match self {
-            Self::NoWorkers { partial, .. } => Some(partial),
+            Self::NoWorkers { partial, .. } | Self::Interrupted { partial, .. } => Some(partial),
             Self::Fatal { .. } | Self::Resume(_) => None,
         }
     }
 }
 
 /// Renders `job` on `workers`.
-pub async fn render(job: &Job, workers: &[WorkerAddr], options: Options) -> Result<Outcome, FarmError> {
-    let mut farm = Farm::new(job, workers, &options)?;
+pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> Result<Outcome, FarmError> {
     let (tx, mut rx) = mpsc::unbounded_channel::<Event>();
+    let mut interrupt = options.interrupt.take();
+    let mut farm = Farm::new(job, workers, &options, tx.clone())?;
     let sessions = start_sessions(job, workers, &options, &tx);
     let mut tick = tokio::time::interval(Duration::from_millis(250));
     let result = loop {
-        if let Some(end) = farm.end() {
+        let now = farm.t0.elapsed();
+        if let Some(end) = farm.end(now) {
             break end;
         }
-        let now = farm.t0.elapsed();
         tokio::select! {
             Some(event) = rx.recv() => farm.on_event(event, now),
             _ = tick.tick() => farm.on_tick(now),
+            signal = interrupted(interrupt.as_mut()) => farm.interrupted = Some(signal),
         }
         farm.print_warnings();
-        farm.fill_slots(&tx);
+        farm.fill_slots();
     };
     farm.finish(result, sessions)
 }
@@ -162,8 +204,10 @@ enum Event {
 enum Stop {
     /// A failure no retry can fix: the strip and why.
     Fatal(String),
-    /// No worker is left, and none is still connecting.
+    /// No worker is left, none is still connecting, and none came back within the patience.
     NoWorkers,
+    /// A signal asked to stop.
+    Interrupted(Interrupt),
 }
 
 /// A worker as the loop knows it.
@@ -182,6 +226,8 @@ struct Member {
     photon_s: f64,
     /// Seconds it spent decoding the job's blobs.
     load_s: f64,
+    /// The task calling it back after it was lost, while it runs.
+    rejoining: Option<AbortHandle>,
 }
 
 /// The state of one render, owned by its event loop: the scheduler, the workers, the image so far and the
@@ -210,10 +256,25 @@ struct Farm<'a> {
     mixed_math_warned: bool,
     warnings: Vec<Warning>,
     bar: indicatif::ProgressBar,
+    /// Where the tasks report.
+    tx: UnboundedSender<Event>,
+    /// The shared token and TLS authority, to call lost workers back.
+    token: Option<String>,
+    tls_ca: Option<Vec<u8>>,
+    rejoin_patience: Duration,
+    /// Since when no worker has been active, while that lasts.
+    none_active_since: Option<Duration>,
+    /// The signal that asked to stop, once one has.
+    interrupted: Option<Interrupt>,
 }
 
 impl<'a> Farm<'a> {
-    fn new(job: &'a Job, workers: &[WorkerAddr], options: &Options) -> Result<Self, FarmError> {
+    fn new(
+        job: &'a Job,
+        workers: &[WorkerAddr],
+        options: &Options,
+        tx: UnboundedSender<Event>,
+    ) -> Result<Self, FarmError> {
         let t0 = Instant::now();
         let n = workers.len() as u32;
         let rows_per_strip = match (&options.resume, options.rows_per_strip, job.passes) {
@@ -241,6 +302,7 @@ impl<'a> Farm<'a> {
                 photon_paths: 0,
                 photon_s: 0.0,
                 load_s: 0.0,
+                rejoining: None,
             })
             .collect();
         let mut farm = Self {
@@ -261,6 +323,12 @@ impl<'a> Farm<'a> {
             mixed_math_warned: false,
             warnings: Vec::new(),
             bar: indicatif::ProgressBar::hidden(),
+            tx,
+            token: options.token.clone(),
+            tls_ca: options.tls_ca.clone(),
+            rejoin_patience: options.rejoin_patience,
+            none_active_since: None,
+            interrupted: None,
         };
         if let Some(p) = &options.resume {
             farm.resume(p)?;
@@ -323,30 +391,42 @@ impl<'a> Farm<'a> {
         self.sched.strip_rows(id).filter(|r| r.start == first).map(|r| (id, r))
     }
 
-    /// How the render ended, once it has.
-    fn end(&self) -> Option<Result<(), Stop>> {
+    /// How the render ended at `now`, once it has.
+    fn end(&mut self, now: Duration) -> Option<Result<(), Stop>> {
         if self.sched.is_done() {
             return Some(Ok(()));
         }
         if let Some((strip, failure)) = self.sched.fatal() {
             return Some(Err(Stop::Fatal(format!("{strip}: {}", failure.reason))));
         }
-        if self.unresolved == 0 && self.sched.all_workers_gone() {
-            return Some(Err(Stop::NoWorkers));
+        if let Some(signal) = self.interrupted {
+            return Some(Err(Stop::Interrupted(signal)));
         }
-        None
+        if !(self.unresolved == 0 && self.sched.all_workers_gone()) {
+            self.none_active_since = None;
+            return None;
+        }
+        let since = *self.none_active_since.get_or_insert(now);
+        let waiting = self.members.iter().any(|m| m.rejoining.is_some());
+        (!waiting || now.saturating_sub(since) >= self.rejoin_patience).then_some(Err(Stop::NoWorkers))
     }
 
     fn on_event(&mut self, event: Event, now: Duration) {
         match event {
             Event::Ready { worker, ready } => self.on_ready(worker, *ready),
             Event::Refused { worker, reason } => self.on_refused(worker, reason.to_string()),
-            Event::Progress { worker, rows } => self.members[worker.0 as usize].rows_live = u64::from(rows),
+            Event::Progress { worker, rows } => {
+                self.sched.heard_from(worker, now);
+                self.members[worker.0 as usize].rows_live = u64::from(rows);
+            }
             Event::Strip { worker, strip, attempt, result } => self.on_strip(worker, strip, attempt, result, now),
         }
     }
 
     fn on_ready(&mut self, worker: WorkerId, ready: Ready) {
+        if self.members[worker.0 as usize].rejoining.take().is_some() {
+            return self.on_rejoined(worker, ready);
+        }
         self.unresolved -= 1;
         self.first_ready.get_or_insert_with(Instant::now);
         let Ready { client, hello, shipped, ship_s } = ready;
@@ -371,9 +451,27 @@ impl<'a> Farm<'a> {
         (m.client, m.hello, m.shipped, m.ship_s) = (Some(client), Some(hello), shipped, ship_s);
     }
 
-    fn on_refused(&mut self, worker: WorkerId, reason: String) {
-        self.unresolved -= 1;
+    /// A lost worker that answered again, with the same build: it takes strips again.
+    fn on_rejoined(&mut self, worker: WorkerId, ready: Ready) {
+        let Ready { client, hello, shipped, .. } = ready;
         let m = &mut self.members[worker.0 as usize];
+        tracing::info!(worker = %m.addr.name, threads = hello.threads, shipped, "rejoined");
+        if self.sched.rejoin(worker, hello.threads) {
+            self.warnings.push(Warning::Rejoined { worker: m.addr.name.clone(), shipped });
+            m.shipped += shipped;
+            (m.client, m.hello, m.out) = (Some(client), Some(hello), None);
+        }
+    }
+
+    fn on_refused(&mut self, worker: WorkerId, reason: String) {
+        let m = &mut self.members[worker.0 as usize];
+        if m.rejoining.take().is_some() {
+            let reason = format!("lost, then refused: {reason}");
+            self.warnings.push(Warning::Refused { worker: m.addr.name.clone(), reason: reason.clone() });
+            m.out = Some(reason);
+            return;
+        }
+        self.unresolved -= 1;
         self.warnings.push(Warning::Refused { worker: m.addr.name.clone(), reason: reason.clone() });
         m.out = Some(reason);
     }
@@ -388,6 +486,9 @@ impl<'a> Farm<'a> {
     ) {
         self.tasks.remove(&(worker, strip));
         self.members[worker.0 as usize].rows_live = 0;
+        if !result.as_ref().is_err_and(StripError::lost) {
+            self.sched.heard_from(worker, now);
+        }
         match result {
             Ok(result) => self.on_result(worker, strip, attempt, result, now),
             Err(e) if e.lost() => self.on_lost(worker, e.to_string(), now),
@@ -415,8 +516,9 @@ impl<'a> Farm<'a> {
         }
         match self.sched.complete(worker, strip, attempt, now) {
             Completion::Accepted { cancel } => {
+                let m = &mut self.members[worker.0 as usize];
+                tracing::info!(worker = %m.addr.name, %strip, "accepted");
                 if !traced_maps {
-                    let m = &mut self.members[worker.0 as usize];
                     m.photon_paths += summary.photon_paths;
                     m.photon_s += summary.photon_seconds;
                     self.photon_paths += summary.photon_paths;
@@ -446,7 +548,7 @@ impl<'a> Farm<'a> {
         self.bar.inc(1);
     }
 
-    /// A worker that cannot be reached: its strips go to the others.
+    /// A worker that cannot be reached: its strips go to the others, and it is called back with backoff.
     fn on_lost(&mut self, worker: WorkerId, reason: String, now: Duration) {
         if self.sched.worker_stats(worker).is_some_and(|s| s.state == WorkerState::Active) {
             let name = self.members[worker.0 as usize].addr.name.clone();
@@ -454,7 +556,22 @@ impl<'a> Farm<'a> {
         }
         let strips = self.sched.worker_lost(worker, now);
         self.cancel(strips.into_iter().map(|s| (worker, s)));
-        self.members[worker.0 as usize].out.get_or_insert(format!("lost: {reason}"));
+        let m = &mut self.members[worker.0 as usize];
+        m.out.get_or_insert(format!("lost: {reason}"));
+        m.client = None;
+        let lost = self.sched.worker_stats(worker).is_some_and(|s| s.state == WorkerState::Lost);
+        if lost && m.rejoining.is_none() {
+            let (tx, job, addr) = (self.tx.clone(), self.job.clone(), m.addr.clone());
+            let (token, tls_ca) = (self.token.clone(), self.tls_ca.clone());
+            let task = tokio::spawn(async move {
+                let event = match crate::rejoin::call_back(&addr, token.as_deref(), tls_ca.as_deref(), &job).await {
+                    Ok(ready) => Event::Ready { worker, ready: Box::new(ready) },
+                    Err(reason) => Event::Refused { worker, reason },
+                };
+                let _ = tx.send(event);
+            });
+            m.rejoining = Some(task.abort_handle());
+        }
     }
 
     /// Reports a failed strip to the scheduler, and drops the worker when that was one failure too many.
@@ -467,8 +584,14 @@ impl<'a> Farm<'a> {
         }
     }
 
-    /// Withdraws the strips past their deadline, as failures of their workers.
+    /// Withdraws the strips past their deadline, as failures of their workers, and notes the workers that fell
+    /// silent.
     fn on_tick(&mut self, now: Duration) {
+        for worker in self.sched.check_stalls(now) {
+            let silence = self.sched.silence_limit(worker);
+            let name = self.members[worker.0 as usize].addr.name.clone();
+            self.warnings.push(Warning::Stalled { worker: name, silence });
+        }
         for (worker, strip) in self.sched.expired(now) {
             self.cancel([(worker, strip)]);
             let deadline = self.sched.deadline(worker, strip).unwrap_or_default();
@@ -494,14 +617,14 @@ impl<'a> Farm<'a> {
     }
 
     /// Gives every ready worker strips until its slots are full.
-    fn fill_slots(&mut self, tx: &UnboundedSender<Event>) {
+    fn fill_slots(&mut self) {
         let now = self.t0.elapsed();
         for (i, m) in self.members.iter().enumerate() {
             let worker = WorkerId(i as u32);
             let Some(client) = &m.client else { continue };
             while let Some(a) = self.sched.assign(worker, now) {
                 let strip = a.strip;
-                let handle = spawn_strip(self.job, worker, a, client.clone(), tx.clone());
+                let handle = spawn_strip(self.job, worker, a, client.clone(), self.tx.clone());
                 self.tasks.insert((worker, strip), handle);
             }
         }
@@ -513,6 +636,11 @@ impl<'a> Farm<'a> {
         self.cancel(self.tasks.keys().copied().collect::<Vec<_>>());
         for s in sessions {
             s.abort();
+        }
+        for m in &mut self.members {
+            if let Some(task) = m.rejoining.take() {
+                task.abort();
+            }
         }
         let (t0, first_ready) = (self.t0, self.first_ready);
         let render_s = first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
@@ -541,6 +669,9 @@ impl<'a> Farm<'a> {
                 Err(FarmError::NoWorkers { reasons, partial: Box::new(self.partial()), workers })
             }
             Stop::Fatal(reason) => Err(FarmError::Fatal { reason, workers }),
+            Stop::Interrupted(signal) => {
+                Err(FarmError::Interrupted { signal, partial: Box::new(self.partial()), workers })
+            }
         }
     }
 
@@ -576,6 +707,9 @@ impl<'a> Farm<'a> {
             .filter(|(_, s)| s.state == WorkerState::Active)
             .map(|(id, s)| {
                 let m = &self.members[id.0 as usize];
+                if s.stalled {
+                    return format!("{} stalled", m.addr.name);
+                }
                 let busy = s.busy.as_secs_f64().max(1e-3);
                 let done = (s.rows + m.rows_live) as f64;
                 match self.passes {
@@ -600,11 +734,17 @@ impl<'a> Farm<'a> {
                     stats.map_or((0, 0.0, 0, 0), |s| (s.strips, s.busy.as_secs_f64(), s.rows, s.failures));
                 // A pass block covers every row of the image once per pass.
                 let rows = if self.passes.is_some() { rows * u64::from(self.job.height) } else { rows };
-                let state = match (&m.out, stats.map(|s| &s.state)) {
+                let state = match (&m.out, stats) {
                     (Some(why), _) => why.clone(),
-                    (None, Some(WorkerState::Dropped(why))) => format!("dropped: {why}"),
-                    (None, Some(WorkerState::Lost)) => "lost".into(),
-                    (None, _) => "ok".into(),
+                    (None, Some(s)) => match &s.state {
+                        WorkerState::Dropped(why) => format!("dropped: {why}"),
+                        WorkerState::Lost => "lost".into(),
+                        WorkerState::Active if s.stalled => "stalled".into(),
+                        WorkerState::Active if s.rejoins == 1 => "ok (rejoined once)".into(),
+                        WorkerState::Active if s.rejoins > 1 => format!("ok (rejoined {} times)", s.rejoins),
+                        WorkerState::Active => "ok".into(),
+                    },
+                    (None, None) => "ok".into(),
                 };
                 WorkerReport {
                     name: m.addr.name.clone(),

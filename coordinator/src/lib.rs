@@ -9,7 +9,7 @@
 //! leaves for `--resume`. [`delivery`] decides whether a job's photon maps are shipped to the workers or traced by each of them. [`fleet`] finds the workers: a host list, an address list, worker processes on
 //! loopback, or a worker server inside this process (the default, so a render on one machine takes the same
 //! path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of an unchanged
-//! scene. [`report`] is what the user reads: warnings during the render, the worker table and the summary line.
+//! scene. [`rejoin`] calls lost workers back with backoff, and [`interrupt`] turns SIGINT and SIGTERM into a render that stops keeping what is finished. [`report`] is what the user reads: warnings during the render, the worker table and the summary line.
 //! [`sweep`] charts error against time. [`model`] is a discrete-event model of a lab farm that drives the real scheduler with a simulated clock and network. [`overrides`] turns the
 //! flags that override scene settings, and the sweep's budgets, into the `KEY=VALUE` pairs of `--set`. [`cli`] holds the command line's arguments and [`commands`] runs them.
 #![forbid(unsafe_code)]
@@ -20,10 +20,12 @@ pub mod commands;
 pub mod delivery;
 pub mod farm;
 pub mod fleet;
+pub mod interrupt;
 pub mod job;
 pub mod model;
 pub mod overrides;
 pub mod prepared_cache;
+pub mod rejoin;
 pub mod report;
 pub mod scheduler;
 pub mod session;

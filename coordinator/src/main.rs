@@ -24,6 +24,8 @@ fn main() {
     }));
     if let Err(e) = commands::run(Cli::parse()) {
         eprintln!("error: {e:#}");
-        std::process::exit(1);
+        // A render stopped by a signal ends as the signal would have ended it (130, 143).
+        let code = e.downcast_ref::<commands::Interrupted>().map_or(1, |i| i.exit_code);
+        std::process::exit(code);
     }
 }

@@ -39,7 +39,7 @@ pub struct WorkerReport {
     pub photon_s: f64,
     /// Seconds it spent decoding the job's blobs (the scene, and photon maps when shipped).
     pub load_s: f64,
-    /// `active`, or why it was refused, lost or dropped.
+    /// `ok` (with the times it rejoined after it was lost), `stalled`, or why it was refused, lost or dropped.
     pub state: String,
 }
 
@@ -191,6 +191,20 @@ pub enum Warning {
         /// Why.
         reason: String,
     },
+    /// A lost worker answered again and takes strips again.
+    Rejoined {
+        /// The worker.
+        worker: String,
+        /// Blob bytes shipped to it again.
+        shipped: u64,
+    },
+    /// A worker holds strips and has said nothing for longer than its silence limit.
+    Stalled {
+        /// The worker.
+        worker: String,
+        /// The limit.
+        silence: std::time::Duration,
+    },
 }
 
 impl fmt::Display for Warning {
@@ -202,8 +216,18 @@ impl fmt::Display for Warning {
                  strips may differ in the last bits, and the image depends on which worker rendered what"
             ),
             Self::Refused { worker, reason } => write!(f, "worker {worker}: {reason}"),
-            Self::Lost { worker, reason } => write!(f, "worker {worker} lost ({reason}); its strips go to the others"),
+            Self::Lost { worker, reason } => {
+                write!(f, "worker {worker} lost ({reason}); its strips go to the others while it is called back")
+            }
             Self::Dropped { worker, reason } => write!(f, "worker {worker} dropped: {reason}"),
+            Self::Rejoined { worker, shipped } => {
+                write!(f, "worker {worker} rejoined ({} shipped again); it takes strips again", human_bytes(*shipped))
+            }
+            Self::Stalled { worker, silence } => write!(
+                f,
+                "worker {worker} stalled: no progress for over {:.1} s; its strips go to the others when overdue",
+                silence.as_secs_f64()
+            ),
         }
     }
 }

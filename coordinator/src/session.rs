@@ -77,6 +77,8 @@ pub enum SessionError {
     Refused {
         /// The status, on one line.
         status: String,
+        /// Its code: [`unanswered`] tells a refusal from a call that never got an answer.
+        code: Code,
         /// A hint when TLS is the likely cause, else empty.
         hint: &'static str,
     },
@@ -203,10 +205,27 @@ pub async fn open(
     tls_ca: Option<&[u8]>,
     job: &Job,
 ) -> Result<Ready, SessionError> {
+    open_with_patience(addr, token, tls_ca, job, Duration::from_secs(3)).await
+}
+
+/// [`open`], retrying refused connections for `patience` (zero: one attempt).
+pub async fn open_with_patience(
+    addr: &WorkerAddr,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    job: &Job,
+    patience: Duration,
+) -> Result<Ready, SessionError> {
     let started = Instant::now();
-    let mut client = connect(&addr.uri, token, tls_ca, Duration::from_secs(3)).await?;
+    let mut client = connect(&addr.uri, token, tls_ca, patience).await?;
     let (hello, shipped) = introduce(&mut client, job).await?;
     Ok(Ready { client, hello, shipped, ship_s: started.elapsed().as_secs_f64() })
+}
+
+/// Whether a hello that failed with `code` got no answer from a worker (the connection died: a worker going
+/// down or restarting, or a plaintext call to a TLS worker) rather than a refusal.
+pub fn unanswered(code: Code) -> bool {
+    matches!(code, Code::Unavailable | Code::Unknown | Code::Internal | Code::Cancelled)
 }
 
 /// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
@@ -248,13 +267,12 @@ pub async fn hello(client: &mut Client) -> Result<pb::HelloReply, SessionError> 
             // A plaintext client talking to a TLS worker sees the connection die without an HTTP/2 answer: as
             // a transport error, or, when the close comes while the call waits (hyper), as a cancelled call,
             // which the coordinator never makes of a hello itself.
-            let hint = match s.code() {
-                Code::Unavailable | Code::Unknown | Code::Internal | Code::Cancelled => {
-                    " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
-                }
-                _ => "",
+            let hint = if unanswered(s.code()) {
+                " (if the worker was started with --tls-cert, give the coordinator --tls-ca)"
+            } else {
+                ""
             };
-            SessionError::Refused { status: status_line(&s), hint }
+            SessionError::Refused { status: status_line(&s), code: s.code(), hint }
         })
 }
 

@@ -195,6 +195,11 @@ pub mod transport {
     /// and a heartbeat at a time: the cap keeps one peer from opening thousands of calls.
     pub const CALLS_PER_CONNECTION: usize = 32;
 
+    /// Calls one peer (one remote IP address, over all its connections) may have in progress at once by default;
+    /// a worker refuses more with `RESOURCE_EXHAUSTED` (photon-worker `--max-calls-per-peer`). Opening many
+    /// connections then gains a peer nothing over [`CALLS_PER_CONNECTION`] each.
+    pub const CALLS_PER_PEER: usize = 64;
+
     /// A server builder with the same settings.
     pub fn server() -> tonic::transport::Server {
         tonic::transport::Server::builder()

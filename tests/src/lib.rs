@@ -145,16 +145,7 @@ impl WorkerProcess {
 
     /// Waits until the worker's log has shown `n` lines containing `needle` (panics after `timeout`).
     pub fn wait_for_log(&self, needle: &str, n: usize, timeout: Duration) {
-        let end = Instant::now() + timeout;
-        let mut seen = 0;
-        while seen < n {
-            let left = end.saturating_duration_since(Instant::now());
-            match self.log.recv_timeout(left) {
-                Ok(line) if line.contains(needle) => seen += 1,
-                Ok(_) => {}
-                Err(e) => panic!("saw `{needle}` {seen} of {n} times in the worker's log: {e}"),
-            }
-        }
+        wait_for_lines(&self.log, needle, n, timeout, "the worker's log");
     }
 
     /// Kills the process at once (SIGKILL on Unix), as a crash would.
@@ -177,6 +168,21 @@ impl Drop for WorkerProcess {
     }
 }
 
+/// Reads `lines` until `n` of them contained `needle`; panics after `timeout` or when the lines end, naming
+/// `source`.
+fn wait_for_lines(lines: &Receiver<String>, needle: &str, n: usize, timeout: Duration, source: &str) {
+    let end = Instant::now() + timeout;
+    let mut seen = 0;
+    while seen < n {
+        let left = end.saturating_duration_since(Instant::now());
+        match lines.recv_timeout(left) {
+            Ok(line) if line.contains(needle) => seen += 1,
+            Ok(_) => {}
+            Err(e) => panic!("saw `{needle}` {seen} of {n} times in {source}: {e}"),
+        }
+    }
+}
+
 /// Waits for a child up to `timeout`; kills it and returns `None` if it is still running then.
 pub fn wait_with_timeout(child: &mut Child, timeout: Duration) -> Option<std::process::ExitStatus> {
     let end = Instant::now() + timeout;
@@ -195,26 +201,77 @@ pub fn wait_with_timeout(child: &mut Child, timeout: Duration) -> Option<std::pr
 
 /// Output of a command run to completion within `timeout` (panics if it runs longer).
 pub fn run_with_timeout(cmd: &mut Command, timeout: Duration) -> std::process::Output {
-    let mut child = cmd
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap_or_else(|e| panic!("cannot start {cmd:?}: {e}"));
-    // Drain the pipes on threads so a chatty child cannot block on a full pipe.
-    let drain = |r: Option<Box<dyn std::io::Read + Send>>| {
-        std::thread::spawn(move || {
+    Running::start(cmd).finish(timeout)
+}
+
+/// A command running in the background, its standard error readable line by line as it comes (to act on what
+/// it says) while both outputs are kept for the end.
+pub struct Running {
+    child: Child,
+    description: String,
+    stdout: std::thread::JoinHandle<Vec<u8>>,
+    stderr: std::thread::JoinHandle<Vec<u8>>,
+    lines: Receiver<String>,
+}
+
+impl Running {
+    /// Starts `cmd` with piped outputs (panics if it cannot start).
+    pub fn start(cmd: &mut Command) -> Self {
+        let mut child = cmd
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap_or_else(|e| panic!("cannot start {cmd:?}: {e}"));
+        // Drain the pipes on threads so a chatty child cannot block on a full pipe.
+        let out = child.stdout.take();
+        let stdout = std::thread::spawn(move || {
             let mut buf = Vec::new();
-            if let Some(mut r) = r {
-                let _ = r.read_to_end(&mut buf);
+            if let Some(mut r) = out {
+                let _ = std::io::Read::read_to_end(&mut r, &mut buf);
             }
             buf
-        })
-    };
-    let out = drain(child.stdout.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>));
-    let err = drain(child.stderr.take().map(|s| Box::new(s) as Box<dyn std::io::Read + Send>));
-    let status = wait_with_timeout(&mut child, timeout)
-        .unwrap_or_else(|| panic!("{cmd:?} ran longer than {timeout:?} and was killed"));
-    let stdout = out.join().unwrap_or_default();
-    let stderr = err.join().unwrap_or_default();
-    std::process::Output { status, stdout, stderr }
+        });
+        let err = child.stderr.take();
+        let (tx, lines) = mpsc::channel();
+        let stderr = std::thread::spawn(move || {
+            let mut buf = Vec::new();
+            if let Some(r) = err {
+                let mut r = BufReader::new(r);
+                let mut line = Vec::new();
+                while matches!(r.read_until(b'\n', &mut line), Ok(n) if n > 0) {
+                    let _ = tx.send(String::from_utf8_lossy(&line).into_owned());
+                    buf.append(&mut line);
+                }
+            }
+            buf
+        });
+        Self { child, description: format!("{cmd:?}"), stdout, stderr, lines }
+    }
+
+    /// Its process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// Sends it a signal by name (`INT`, `TERM`, `STOP`, …) with `kill`; returns whether it was delivered
+    /// (`false` once the process has ended).
+    pub fn signal(&self, name: &str) -> bool {
+        let status = Command::new("kill").arg(format!("-{name}")).arg(self.pid().to_string()).status();
+        status.is_ok_and(|s| s.success())
+    }
+
+    /// Waits until its standard error has shown `n` lines containing `needle` (panics after `timeout`, or if it
+    /// ends first).
+    pub fn wait_for_line(&self, needle: &str, n: usize, timeout: Duration) {
+        wait_for_lines(&self.lines, needle, n, timeout, &format!("{}'s standard error", self.description));
+    }
+
+    /// Waits for it to end within `timeout` (panics if it runs longer) and returns its outputs.
+    pub fn finish(mut self, timeout: Duration) -> std::process::Output {
+        let status = wait_with_timeout(&mut self.child, timeout)
+            .unwrap_or_else(|| panic!("{} ran longer than {timeout:?} and was killed", self.description));
+        let stdout = self.stdout.join().unwrap_or_default();
+        let stderr = self.stderr.join().unwrap_or_default();
+        std::process::Output { status, stdout, stderr }
+    }
 }

@@ -89,6 +89,38 @@ fn drip(mut c: RenderClient<Channel>, size: u64, every: Option<Duration>) -> tok
     })
 }
 
+/// One peer may hold `--max-calls-per-peer` calls at once over all its connections: the next is refused with
+/// RESOURCE_EXHAUSTED naming the cap, and once the held calls end the peer is served again.
+#[tokio::test]
+async fn calls_over_the_per_peer_cap_are_refused_naming_it() {
+    let w = WorkerProcess::start(&["--max-calls-per-peer", "2", "--upload-idle-s", "10"]);
+    let hello = || pb::HelloRequest {
+        protocol_version: photon_proto::PROTOCOL_VERSION,
+        build_id: photon_proto::BUILD_ID.into(),
+        crate_version: photon_proto::CRATE_VERSION.into(),
+    };
+    let mut c = client(&w).await;
+    c.hello(hello()).await.unwrap();
+    // Two stalled uploads, on two connections, hold both calls until the idle timeout (10 s) cuts them.
+    let stalls = [drip(client(&w).await, 100, None), drip(client(&w).await, 100, None)];
+    // Poll until both are admitted: then a third call, on a third connection, is refused.
+    let end = Instant::now() + Duration::from_secs(8);
+    let refused = loop {
+        match c.hello(hello()).await {
+            Err(e) => break e,
+            Ok(_) if Instant::now() < end => tokio::time::sleep(Duration::from_millis(20)).await,
+            Ok(_) => panic!("a third call was admitted while two uploads were held"),
+        }
+    };
+    assert_eq!(refused.code(), Code::ResourceExhausted, "{refused:?}");
+    assert!(refused.message().contains("2 calls") && refused.message().contains("--max-calls-per-peer"), "{refused:?}");
+    for s in stalls {
+        assert_eq!(s.await.unwrap().code(), Code::DeadlineExceeded);
+    }
+    // The held calls ended: the peer is served again.
+    c.hello(hello()).await.unwrap();
+}
+
 #[tokio::test]
 async fn hostile_requests_are_refused_and_the_worker_then_renders_a_correct_strip() {
     let w = WorkerProcess::start(&["--upload-idle-s", "1", "--test-panic-strips", "1"]);

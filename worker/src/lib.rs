@@ -16,6 +16,8 @@
 //! strip that would not fit the worker's memory (`RESOURCE_EXHAUSTED`), blobs that do not decode
 //! (`INVALID_ARGUMENT`). A status echoes at most a short, escaped prefix of a received value
 //! ([`photon_proto::quote`]). A panic while rendering (a bug) fails that strip with `INTERNAL`, not the worker.
+//! One peer (a remote IP address) may have [`Config::max_calls_per_peer`] calls in progress over all its
+//! connections; beyond that a call is refused with `RESOURCE_EXHAUSTED`, naming the cap.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -32,7 +34,9 @@ use photon_core::scene::Integrator;
 use photon_proto::pb::render_server::{Render, RenderServer};
 use photon_proto::pb::{self, strip_event::Event};
 use photon_proto::{MAX_CHUNK, MAX_MESSAGE, quote};
+use std::collections::HashMap;
 use std::future::Future;
+use std::net::{IpAddr, SocketAddr};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
@@ -69,6 +73,8 @@ pub struct Config {
     pub strip_memory_bytes: u64,
     /// Strip requests that may wait behind the one rendering.
     pub max_queue: usize,
+    /// Calls one remote IP address may have in progress at once, over all its connections.
+    pub max_calls_per_peer: usize,
     /// The build id this worker claims (the real one unless a test pretends otherwise).
     pub build_id: String,
     /// The math mode this worker claims (the real one, [`photon_core::math::fmath::MODE`], unless a test pretends
@@ -92,6 +98,7 @@ impl Default for Config {
             upload_min_rate: 256 << 10,
             strip_memory_bytes: if memory_bytes() == 0 { u64::MAX } else { memory_bytes() / 2 },
             max_queue: 4,
+            max_calls_per_peer: photon_proto::transport::CALLS_PER_PEER,
             build_id: photon_proto::BUILD_ID.to_owned(),
             math_mode: photon_core::math::fmath::MODE.to_owned(),
             fault: Fault::None,
@@ -148,6 +155,54 @@ pub struct Worker {
     waiting: Arc<AtomicUsize>,
     /// Strips left to corrupt ([`Fault::CorruptPixels`]) or to panic in ([`Fault::Panic`]).
     corrupt_left: Arc<AtomicU32>,
+    /// Calls in progress per peer ([`Config::max_calls_per_peer`]).
+    peers: Arc<PeerCalls>,
+}
+
+/// Calls in progress per remote IP address, capped.
+#[derive(Debug)]
+struct PeerCalls {
+    cap: usize,
+    calls: Mutex<HashMap<IpAddr, usize>>,
+}
+
+/// One admitted call; its peer's count goes down when it drops.
+struct PeerCall {
+    peers: Arc<PeerCalls>,
+    ip: Option<IpAddr>,
+}
+
+impl PeerCalls {
+    /// Admits a call from `peer`, or refuses it when the peer has `cap` calls in progress already. A call whose
+    /// peer is unknown (not over TCP) is not counted.
+    fn admit(self: &Arc<Self>, peer: Option<SocketAddr>) -> Result<PeerCall, Status> {
+        let ip = peer.map(|p| p.ip());
+        if let Some(ip) = ip {
+            let mut calls = self.calls.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+            let n = calls.entry(ip).or_insert(0);
+            if *n >= self.cap {
+                return Err(Status::resource_exhausted(format!(
+                    "{ip} already has {} calls in progress here, the most one peer may have                      (photon-worker --max-calls-per-peer)",
+                    self.cap
+                )));
+            }
+            *n += 1;
+        }
+        Ok(PeerCall { peers: self.clone(), ip })
+    }
+}
+
+impl Drop for PeerCall {
+    fn drop(&mut self) {
+        let Some(ip) = self.ip else { return };
+        let mut calls = self.peers.calls.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        if let Some(n) = calls.get_mut(&ip) {
+            *n = n.saturating_sub(1);
+            if *n == 0 {
+                calls.remove(&ip);
+            }
+        }
+    }
 }
 
 /// Why a worker cannot start.
@@ -186,6 +241,7 @@ impl Worker {
             upload_bytes: Arc::new(Semaphore::new(upload_budget)),
             waiting: Arc::new(AtomicUsize::new(0)),
             corrupt_left: Arc::new(AtomicU32::new(corrupt)),
+            peers: Arc::new(PeerCalls { cap: config.max_calls_per_peer.max(1), calls: Mutex::new(HashMap::new()) }),
             config,
         })
     }
@@ -358,6 +414,7 @@ impl Worker {
 #[tonic::async_trait]
 impl Render for Worker {
     async fn hello(&self, request: Request<pb::HelloRequest>) -> Result<Response<pb::HelloReply>, Status> {
+        let _call = self.peers.admit(request.remote_addr())?;
         let r = request.into_inner();
         if r.protocol_version != photon_proto::PROTOCOL_VERSION {
             return Err(Status::failed_precondition(format!(
@@ -395,6 +452,7 @@ impl Render for Worker {
         &self,
         request: Request<pb::MissingBlobsRequest>,
     ) -> Result<Response<pb::MissingBlobsReply>, Status> {
+        let _call = self.peers.admit(request.remote_addr())?;
         let ids = request.into_inner().ids;
         if ids.len() > 1024 {
             return Err(Status::invalid_argument(format!("{} blob ids in one request; at most 1024", ids.len())));
@@ -415,6 +473,7 @@ impl Render for Worker {
     }
 
     async fn put_blob(&self, request: Request<Streaming<pb::BlobChunk>>) -> Result<Response<pb::PutBlobReply>, Status> {
+        let _call = self.peers.admit(request.remote_addr())?;
         let mut stream = request.into_inner();
         let idle = self.config.upload_idle;
         let Some(first) = next_chunk(&mut stream, Instant::now() + idle, idle).await? else {
@@ -497,6 +556,8 @@ impl Render for Worker {
         &self,
         request: Request<pb::StripRequest>,
     ) -> Result<Response<Self::RenderStripStream>, Status> {
+        // Held until the strip's last event is sent (or it is cancelled).
+        let call = self.peers.admit(request.remote_addr())?;
         let r = request.into_inner();
         for id in [&r.scene_blob, &r.photons_blob] {
             if photon_proto::is_blob_id(id) && !self.blobs.contains(id) {
@@ -527,6 +588,7 @@ impl Render for Worker {
         let slot = self.render_slot.clone();
         let waiting = self.waiting.clone();
         tokio::spawn(async move {
+            let _call = call;
             let permit = slot.acquire_owned().await;
             waiting.fetch_sub(1, Ordering::Relaxed);
             let Ok(_permit) = permit else { return };

@@ -46,6 +46,9 @@ struct Cli {
     /// at this rate.
     #[arg(long, default_value_t = 256)]
     upload_min_kib_s: u64,
+    /// Calls one remote IP address may have in progress at once, over all its connections; more are refused.
+    #[arg(long, default_value_t = photon_proto::transport::CALLS_PER_PEER)]
+    max_calls_per_peer: usize,
     /// Test only: claim this build id instead of the real one.
     #[arg(long, hide = true)]
     test_build_id: Option<String>,
@@ -87,6 +90,9 @@ fn run(cli: Cli) -> Result<()> {
     if !(cli.upload_idle_s.is_finite() && cli.upload_idle_s > 0.0 && cli.upload_idle_s <= 86_400.0) {
         bail!("--upload-idle-s must be a number of seconds in (0, 86400], found {}", cli.upload_idle_s);
     }
+    if cli.max_calls_per_peer == 0 {
+        bail!("--max-calls-per-peer must be at least 1");
+    }
     if cli.upload_min_kib_s == 0 {
         bail!("--upload-min-kib-s must be at least 1");
     }
@@ -107,6 +113,7 @@ fn run(cli: Cli) -> Result<()> {
         upload_budget_bytes: (2 * cli.max_blob_mib) << 20,
         upload_idle: std::time::Duration::from_secs_f64(cli.upload_idle_s),
         upload_min_rate: cli.upload_min_kib_s << 10,
+        max_calls_per_peer: cli.max_calls_per_peer,
         ..Config::default()
     };
     if let Some(id) = cli.test_build_id {

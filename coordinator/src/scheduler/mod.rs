@@ -75,6 +75,8 @@ struct Worker {
     seconds_per_row: Option<f64>,
     /// When its in-flight set last became non-empty.
     busy_since: Option<Duration>,
+    /// When it last showed a sign of life (progress or a result).
+    heard: Option<Duration>,
 }
 
 /// The strip scheduler (see the module documentation for the policy).
@@ -145,10 +147,73 @@ impl Scheduler {
             duplicates: 0,
             speculative: 0,
             state: WorkerState::Active,
+            stalled: false,
+            rejoins: 0,
         };
-        let worker = Worker { stats, in_flight: BTreeSet::new(), seconds_per_row: None, busy_since: None };
+        let worker = Worker { stats, in_flight: BTreeSet::new(), seconds_per_row: None, busy_since: None, heard: None };
         self.workers.insert(id, worker);
         true
+    }
+
+    /// Takes back a lost worker that answers again (reconnected, and checked as at the start), with the `cores`
+    /// it now announces: it is active again, keeps its numbers, and counts one more rejoin. Its speed is measured
+    /// afresh (a restarted worker loads the scene again, and may be another machine at the same address).
+    /// Returns `false` (and changes nothing) unless the worker is [`WorkerState::Lost`].
+    pub fn rejoin(&mut self, id: WorkerId, cores: u32) -> bool {
+        match self.workers.get_mut(&id) {
+            Some(w) if w.stats.state == WorkerState::Lost => {
+                w.stats.state = WorkerState::Active;
+                w.stats.cores = cores;
+                w.stats.stalled = false;
+                w.stats.rejoins += 1;
+                w.heard = None;
+                w.seconds_per_row = None;
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Records that `worker` showed a sign of life at `now` (progress or a result): it is not stalled.
+    pub fn heard_from(&mut self, worker: WorkerId, now: Duration) {
+        if let Some(w) = self.workers.get_mut(&worker) {
+            w.heard = Some(now);
+            w.stats.stalled = false;
+        }
+    }
+
+    /// How long `worker` may stay silent while it holds strips before it counts as stalled: the deadline of a
+    /// one-row strip at its measured speed (not below [`Policy::silence_floor`]), or [`Policy::first_deadline`]
+    /// while it has measured nothing (its first strip may include loading the scene).
+    pub fn silence_limit(&self, worker: WorkerId) -> Duration {
+        match self.seconds_per_row(worker) {
+            Some(spr) => Duration::try_from_secs_f64(self.policy.deadline_factor * spr)
+                .unwrap_or(Duration::MAX)
+                .max(self.policy.silence_floor),
+            None => self.policy.first_deadline,
+        }
+    }
+
+    /// Marks as stalled every active worker that holds strips and has said nothing (no progress, no result) for
+    /// longer than its [`Scheduler::silence_limit`], counted from when it last spoke or, if later, from when it
+    /// last became busy. Returns the workers newly stalled, in id order. A worker stays stalled until it is
+    /// heard from again ([`Scheduler::heard_from`]), even after its strips went to others.
+    pub fn check_stalls(&mut self, now: Duration) -> Vec<WorkerId> {
+        let limits: Vec<(WorkerId, Duration)> = self.workers.keys().map(|&id| (id, self.silence_limit(id))).collect();
+        let mut newly = Vec::new();
+        for (id, limit) in limits {
+            let Some(w) = self.workers.get_mut(&id) else { continue };
+            if w.stats.stalled || w.stats.state != WorkerState::Active {
+                continue;
+            }
+            let Some(busy) = w.busy_since else { continue };
+            let since = w.heard.map_or(busy, |h| h.max(busy));
+            if now.saturating_sub(since) > limit {
+                w.stats.stalled = true;
+                newly.push(id);
+            }
+        }
+        newly
     }
 
     /// Gives `worker` its next strip at time `now`, if it is active, has a free slot and there is work: the first

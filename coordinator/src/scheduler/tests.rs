@@ -640,3 +640,79 @@ fn random_event_orders_accept_every_strip_exactly_once() {
     let counts = [drops, losses, expiries, late, speculative];
     assert!(counts.iter().all(|&n| n >= 20), "drops, losses, expiries, late results, speculative copies: {counts:?}");
 }
+
+#[test]
+fn a_lost_worker_rejoins_with_its_numbers_and_takes_strips_again() {
+    let mut s = Scheduler::new(40, 4);
+    s.add_worker(W0, 4);
+    s.add_worker(W1, 4);
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(1.0))));
+    let held = s.assign(W0, secs(1.0)).unwrap();
+    assert_eq!(s.worker_lost(W0, secs(2.0)), vec![held.strip]);
+    assert_eq!(s.assign(W0, secs(2.0)), None, "a lost worker takes nothing");
+    // Only a lost worker rejoins; an active or dropped one, or an unknown id, does not.
+    assert!(!s.rejoin(W1, 4));
+    assert!(!s.rejoin(W2, 4));
+    assert!(s.rejoin(W0, 8));
+    assert!(!s.rejoin(W0, 8), "already back");
+    let stats = s.worker_stats(W0).unwrap();
+    assert_eq!((stats.state.clone(), stats.cores, stats.strips, stats.rejoins), (WorkerState::Active, 8, 1, 1));
+    assert_eq!(s.seconds_per_row(W0), None, "measured afresh");
+    // It takes the strip it held when it was lost (requeued at the front), with a new attempt number; a late
+    // result of the old attempt is not accepted.
+    let again = s.assign(W0, secs(3.0)).unwrap();
+    assert_eq!(again.strip, held.strip);
+    assert!(again.attempt > held.attempt);
+    assert_eq!(s.complete(W0, held.strip, held.attempt, secs(3.5)), Completion::Unknown);
+    assert!(is_accepted(&s.complete(W0, again.strip, again.attempt, secs(4.0))));
+    assert_eq!(s.worker_stats(W0).unwrap().strips, 2);
+    // A dropped worker stays out.
+    let policy = Policy { max_counted_failures: 1, ..Policy::default() };
+    let mut s = Scheduler::with_policy(8, 4, policy);
+    s.add_worker(W0, 1);
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert!(matches!(
+        s.failed(W0, a.strip, StripFailure::counted("bad"), secs(1.0)),
+        FailureOutcome::WorkerDropped { .. }
+    ));
+    assert!(!s.rejoin(W0, 1));
+}
+
+#[test]
+fn a_busy_worker_silent_past_its_limit_is_stalled_until_it_speaks() {
+    let policy = Policy { silence_floor: secs(2.0), first_deadline: secs(100.0), ..Policy::default() };
+    let mut s = Scheduler::with_policy(40, 4, policy);
+    s.add_worker(W0, 1);
+    s.add_worker(W1, 1);
+    // Before its speed is known, a worker may be silent for the first deadline (its first strip may load the
+    // scene).
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert_eq!(s.silence_limit(W0), secs(100.0));
+    assert!(s.check_stalls(secs(99.0)).is_empty());
+    s.heard_from(W0, secs(0.5));
+    assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(4.0))));
+    s.heard_from(W0, secs(4.0));
+    // 1 s a row: the limit is max(4 × 1 s, 2 s) = 4 s of silence while it holds strips.
+    assert_eq!(s.silence_limit(W0), secs(4.0));
+    // Idle workers are never stalled, however long they are silent; W1 holds nothing.
+    assert!(s.check_stalls(secs(50.0)).is_empty());
+    // Busy from 50 s: counted from then, not from when it last spoke (4 s).
+    s.assign(W0, secs(50.0)).unwrap();
+    assert!(s.check_stalls(secs(54.0)).is_empty());
+    s.heard_from(W0, secs(53.0));
+    assert!(s.check_stalls(secs(57.0)).is_empty());
+    assert_eq!(s.check_stalls(secs(57.5)), vec![W0]);
+    assert!(s.worker_stats(W0).unwrap().stalled);
+    assert!(s.check_stalls(secs(60.0)).is_empty(), "reported once");
+    // It stays stalled until it is heard from, then it is not.
+    s.heard_from(W0, secs(61.0));
+    assert!(!s.worker_stats(W0).unwrap().stalled);
+    assert!(!s.worker_stats(W1).unwrap().stalled);
+    // The floor holds for a fast worker: 0.01 s a row still allows 2 s.
+    let mut s = Scheduler::with_policy(40, 4, Policy { silence_floor: secs(2.0), ..Policy::default() });
+    s.add_worker(W0, 1);
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(0.04))));
+    assert_eq!(s.silence_limit(W0), secs(2.0));
+}

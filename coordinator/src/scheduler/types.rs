@@ -41,6 +41,8 @@ pub struct Policy {
     pub deadline_floor: Duration,
     /// The deadline while no worker has completed a strip yet, so nothing is known of the speed.
     pub first_deadline: Duration,
+    /// The shortest silence after which a busy worker counts as stalled ([`Scheduler::silence_limit`]).
+    pub silence_floor: Duration,
     /// Weight of the newest strip in the moving average of seconds per row, in (0, 1].
     pub speed_smoothing: f64,
 }
@@ -54,6 +56,7 @@ impl Default for Policy {
             deadline_factor: 4.0,
             deadline_floor: Duration::from_secs(10),
             first_deadline: Duration::from_secs(600),
+            silence_floor: Duration::from_secs(2),
             speed_smoothing: 0.3,
         }
     }
@@ -173,7 +176,7 @@ pub enum FailureOutcome {
 pub enum WorkerState {
     /// Registered and taking strips.
     Active,
-    /// Its connection was lost ([`Scheduler::worker_lost`]).
+    /// Its connection was lost ([`Scheduler::worker_lost`]); it may rejoin ([`Scheduler::rejoin`]).
     Lost,
     /// Dropped after too many counted failures, with the reason.
     Dropped(String),
@@ -200,4 +203,9 @@ pub struct WorkerStats {
     pub speculative: u32,
     /// Whether it is still taking strips.
     pub state: WorkerState,
+    /// It holds strips and has said nothing for longer than its silence limit (frozen, or its link is): shown
+    /// as `stalled` until it is heard from again.
+    pub stalled: bool,
+    /// Times it came back after it was lost.
+    pub rejoins: u32,
 }
