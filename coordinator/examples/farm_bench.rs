@@ -328,7 +328,7 @@ fn model() {
         (Integrator::Progressive, 100_000),
     ];
     for (integrator, photons) in methods {
-        let (mut scene, path) = cornell(width, 1, integrator, photons);
+        let (mut scene, path) = cornell(width, 1, integrator, photons.max(1));
         scene.camera.height = height;
         scene.render.photons.pass_photons = photons.max(1);
         scene.render.photons.passes = 2;

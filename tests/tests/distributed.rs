@@ -214,14 +214,16 @@ fn with_no_worker_left_the_render_stops_and_resumes() {
 fn a_second_render_ships_no_blob() {
     let dir = temp_dir("distributed", "ship");
     let w = WorkerProcess::start(&[]);
-    let first = render(&dir.join("a.exr"), QUICK, &["--workers", &w.addr]);
+    // Shipped photon maps (the worker could trace them itself: tests/tests/map_delivery.rs).
+    let ship = ["--workers", &w.addr, "--photon-maps", "ship"];
+    let first = render(&dir.join("a.exr"), QUICK, &ship);
     assert!(first.status.success(), "{}", text(&first));
-    let second = render(&dir.join("b.exr"), QUICK, &["--workers", &w.addr]);
+    let second = render(&dir.join("b.exr"), QUICK, &ship);
     assert!(second.status.success(), "{}", text(&second));
     assert!(shipped(&first) > 100_000, "the photon map alone is larger: {}", text(&first));
     assert_eq!(shipped(&second), 0, "{}", text(&second));
     // Another exposure is another frame, not another scene nor other photons: still nothing to ship.
-    let third = render(&dir.join("c.exr"), QUICK, &["--workers", &w.addr, "--exposure", "1"]);
+    let third = render(&dir.join("c.exr"), QUICK, &[&ship[..], &["--exposure", "1"]].concat());
     assert_eq!(shipped(&third), 0, "{}", text(&third));
 }
 

@@ -11,7 +11,12 @@ use std::time::Duration;
 fn render(scene: &Path, cache: &Path, out: &Path, extra: &[&str]) -> Output {
     let mut cmd = Command::new(coordinator());
     cmd.arg("render").arg(scene).arg("-o").arg(out).arg("-q").arg("--cache-dir").arg(cache);
-    cmd.args(["--size", "32x24", "--spp", "2", "--integrator", "photon-map", "--photons", "5000"]).args(extra);
+    // Shipped maps: the coordinator traces them, so they go through its cache (traced ones never do).
+    cmd.args(["--size", "32x24", "--spp", "2", "--integrator", "photon-map", "--photons", "5000"]);
+    if !extra.contains(&"--photon-maps") {
+        cmd.args(["--photon-maps", "ship"]);
+    }
+    cmd.args(extra);
     let o = run_with_timeout(&mut cmd, Duration::from_secs(120));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     o
@@ -45,6 +50,10 @@ fn unchanged_scenes_come_from_the_cache_and_changed_ones_do_not() {
     std::fs::write(&obj, text + "\n# changed\n").unwrap();
     let fourth = render(&scene, &cache, &dir.join("d.exr"), &[]);
     assert!(summary(&fourth).ends_with("scene built, photons built"), "{}", summary(&fourth));
+    // Maps the workers trace are neither read from the cache nor stored in it; the image is the same.
+    let traced = render(&scene, &cache, &dir.join("t.exr"), &["--photon-maps", "trace"]);
+    assert!(summary(&traced).ends_with("scene cached"), "{}", summary(&traced));
+    assert_eq!(std::fs::read(dir.join("d.exr")).unwrap(), std::fs::read(dir.join("t.exr")).unwrap());
     // --no-cache says nothing of the cache.
     let mut cmd = Command::new(coordinator());
     cmd.arg("render").arg(&scene).arg("-o").arg(dir.join("e.exr")).args(["-q", "--no-cache", "--size", "8x8"]);

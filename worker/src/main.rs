@@ -155,40 +155,47 @@ fn run(cli: Cli) -> Result<()> {
             );
             eprintln!("warning: {addr} is not a loopback address and TLS is off (see --tls-cert)");
         }
+        // Watch the signals before saying where we listen: a SIGTERM sent as soon as the address is known (a
+        // script, a test, Slurm ending the job) must stop the worker cleanly, not kill it.
+        let shutdown = shutdown_signal();
         // The first line of standard output names the address: scripts and tests that asked for port 0 read it.
         println!("photon-worker listening on {addr}");
         std::io::stdout().flush().context("writing to standard output")?;
         tracing::info!(
             %addr, threads, build = photon_proto::BUILD_ID, version = photon_proto::CRATE_VERSION, "serving"
         );
-        photon_worker::serve(worker, listener, shutdown_signal()).await.context("serving")?;
+        photon_worker::serve(worker, listener, shutdown).await.context("serving")?;
         tracing::info!("stopped");
         Ok(())
     })
 }
 
-/// Resolves on SIGTERM or Ctrl-C.
-async fn shutdown_signal() {
-    let ctrl_c = async {
-        let _ = tokio::signal::ctrl_c().await;
-    };
+/// A future that resolves on SIGTERM or Ctrl-C. The SIGTERM handler is installed when this is called, not when
+/// the future is first polled, so a SIGTERM that arrives after the call is never missed.
+fn shutdown_signal() -> impl std::future::Future<Output = ()> {
     #[cfg(unix)]
-    let term = async {
-        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
-            Ok(mut s) => {
-                s.recv().await;
+    let term = tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate())
+        .map_err(|e| tracing::warn!("cannot watch SIGTERM: {e}"))
+        .ok();
+    async move {
+        let ctrl_c = async {
+            let _ = tokio::signal::ctrl_c().await;
+        };
+        #[cfg(unix)]
+        let term = async move {
+            match term {
+                Some(mut s) => {
+                    s.recv().await;
+                }
+                None => std::future::pending::<()>().await,
             }
-            Err(e) => {
-                tracing::warn!("cannot watch SIGTERM: {e}");
-                std::future::pending::<()>().await;
-            }
+        };
+        #[cfg(not(unix))]
+        let term = std::future::pending::<()>();
+        tokio::select! {
+            () = ctrl_c => {}
+            () = term => {}
         }
-    };
-    #[cfg(not(unix))]
-    let term = std::future::pending::<()>();
-    tokio::select! {
-        () = ctrl_c => {}
-        () = term => {}
+        tracing::info!("shutting down");
     }
-    tracing::info!("shutting down");
 }
