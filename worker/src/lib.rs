@@ -376,7 +376,11 @@ pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Fram
         )));
     }
     check_passes(r, &frame.settings)?;
-    let estimate = MemoryEstimate::strip(width, r.row_end - r.row_start, &frame.settings, limits.threads);
+    let mut estimate = MemoryEstimate::strip(width, r.row_end - r.row_start, &frame.settings, limits.threads);
+    if r.trace_photons {
+        // Maps traced here are held here (received ones were bounded by the blob size limit on upload).
+        estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
+    }
     estimate
         .check(limits.strip_memory_bytes, width, r.row_end - r.row_start, &frame.settings)
         .map_err(|e| Status::resource_exhausted(format!("this worker cannot render the strip: {e}")))?;

@@ -125,7 +125,11 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
                 assert!((1..=MAX_IMAGE_SIDE).contains(&w) && (1..=MAX_IMAGE_SIDE).contains(&h), "case {case}");
                 assert!(r.row_start < r.row_end && r.row_end <= h, "case {case}: rows {}..{}", r.row_start, r.row_end);
                 let rows = r.row_end - r.row_start;
-                let bytes = MemoryEstimate::strip(w, rows, &frame.settings, limits.threads).total();
+                let mut estimate = MemoryEstimate::strip(w, rows, &frame.settings, limits.threads);
+                if r.trace_photons {
+                    estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
+                }
+                let bytes = estimate.total();
                 assert!(bytes <= limits.strip_memory_bytes, "case {case}: {bytes} bytes accepted");
                 // Photon maps come one way or the other when, and only when, the method reads them.
                 let maps = usize::from(!r.photons_blob.is_empty()) + usize::from(r.trace_photons);

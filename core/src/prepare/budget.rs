@@ -91,11 +91,6 @@ impl MemoryEstimate {
     /// (`strip_rows` rows at a time on `threads` threads).
     pub fn job(width: u32, height: u32, strip_rows: u32, settings: &RenderSettings, threads: usize) -> Self {
         let strip = Self::strip(width, strip_rows.min(height), settings, threads);
-        let paths = match settings.integrator {
-            Integrator::PhotonMap => u64::from(settings.photons.global),
-            Integrator::FinalGather => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
-            Integrator::Path | Integrator::Direct | Integrator::Progressive => 0,
-        };
         // The coordinator adds the blocks' sums into its own (a block as it arrives is counted in `strip`).
         let sums = if settings.integrator == Integrator::Progressive {
             pixels(width, height).saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL)
@@ -104,10 +99,21 @@ impl MemoryEstimate {
         };
         Self {
             image: pixels(width, height).saturating_mul(IMAGE_BYTES_PER_PIXEL).saturating_add(strip.image),
-            photon_maps: paths.saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON),
+            photon_maps: Self::photon_maps(settings),
             progressive: strip.progressive.saturating_add(sums),
             ..strip
         }
+    }
+
+    /// The bytes of the static photon maps the method reads (none for the others): what the coordinator holds
+    /// when it traces them, and what a worker that traces them itself (`StripRequest.trace_photons`) holds.
+    pub fn photon_maps(settings: &RenderSettings) -> u64 {
+        let paths = match settings.integrator {
+            Integrator::PhotonMap => u64::from(settings.photons.global),
+            Integrator::FinalGather => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
+            Integrator::Path | Integrator::Direct | Integrator::Progressive => 0,
+        };
+        paths.saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON)
     }
 
     /// One strip of `rows` rows of an image `width` pixels wide on a worker with `threads` render threads (the
