@@ -56,15 +56,13 @@ fn render(args: RenderArgs) -> Result<()> {
     // preparing: how they get the photon maps depends on them.
     let rt = runtime()?;
     let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
+    // The model's view of the workers is needed only when it chooses (a forced mode ignores it).
     let model_farm = if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
-        Some(rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref())))
+        rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref()))
     } else {
-        None
+        delivery::Farm::default()
     };
-    let decide = |prep: &Prepared| match &model_farm {
-        Some(f) => delivery::choose(MapDelivery::Auto, prep, f),
-        None => delivery::choose(args.photon_maps, prep, &delivery::Farm::default()),
-    };
+    let decide = |prep: &Prepared| delivery::choose(args.photon_maps, prep, &model_farm);
     let (job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
     let (width, height) = (job.width, job.height);
     let settings = scene.render.clone();

@@ -103,8 +103,9 @@ impl Photon {
 /// sorting, so a map read back from a blob is not sorted twice).
 ///
 /// Why: the kd-tree's construction partitions an index array while reading the photon of each index; on
-/// photons in tracing order those reads miss the cache (a map of 6.7 M photons took 12 s to build on one
-/// core, 2 s once sorted; `cargo run --release -p photon-core --example map_costs`). Gathers read photons that
+/// photons in tracing order those reads miss the cache (a map of 6.7 M photons took 7.9 s to build on one
+/// core, 2.6 s once sorted, sort included; `cargo run --release -p photon-core --example map_costs`, numbers in
+/// docs/RESULTS.md). Gathers read photons that
 /// lie near each other too, which this puts near each other in memory.
 pub fn sort_spatially(photons: &mut Vec<Photon>) {
     use rayon::prelude::*;
