@@ -134,8 +134,8 @@ fn main() {
                 let w = InProcess::start(Some(1)).await.expect("worker");
                 let mut c = session::connect(&w.addr.uri, None, None, Duration::from_secs(3)).await.expect("connect");
                 let t = Instant::now();
-                let (_, shipped) = session::introduce(&mut c, &job).await.expect("ship");
-                assert_eq!(shipped, bytes);
+                let (_, delivered) = session::introduce(&mut c, &job, &w.addr.uri).await.expect("ship");
+                assert_eq!(delivered.shipped, bytes);
                 t.elapsed().as_secs_f64()
             });
             times.push(secs);
@@ -343,14 +343,16 @@ fn model() {
             Prepared::from_blobs(&job.blobs[&job.scene_blob], photons, &job.frame, usize::MAX).expect("decode")
         };
         let (load_core_s, _) = one_thread(|| decode(photons_blob));
-        // How the workers get the maps: shipped (the coordinator traces them while preparing), or traced by each
-        // worker while loading (only the scene blob ships; `--photon-maps trace`).
-        let mut deliveries = vec![("", job.blob_bytes() as f64, prepare_s, load_core_s)];
+        // How the workers get the maps: shipped (the coordinator traces them while preparing), passed on among
+        // the workers (`--photon-maps peers`), or traced by each worker while loading (only the scene blob ships;
+        // `--photon-maps trace`).
+        let mut deliveries = vec![("", job.blob_bytes() as f64, prepare_s, load_core_s, false)];
         if integrator.needs_photon_maps() {
             let (traced_load_s, _) = one_thread(|| decode(None).build_photon_maps().expect("maps"));
             let scene_bytes = job.blobs[&job.scene_blob].len() as f64;
             deliveries[0].0 = ", maps shipped";
-            deliveries.push((", maps traced by workers", scene_bytes, scene_prepare_s, traced_load_s));
+            deliveries.push((", maps among peers", job.blob_bytes() as f64, prepare_s, load_core_s, true));
+            deliveries.push((", maps traced by workers", scene_bytes, scene_prepare_s, traced_load_s, false));
         }
         let rows = 8u32;
         let (units, core_s_per_unit, fixed, per_unit, label) = if integrator == Integrator::Progressive {
@@ -378,7 +380,7 @@ fn model() {
             vec![photon_coordinator::scheduler::rows_per_strip_for(height, lab.len() as u32)]
         };
         let runs = cuts.iter().flat_map(|&c| deliveries.iter().map(move |&d| (c, d)));
-        for (per_strip, (delivery, blob_bytes, prepare_s, load_core_s)) in runs {
+        for (per_strip, (delivery, blob_bytes, prepare_s, load_core_s, relay)) in runs {
             let sim = SimJob {
                 units,
                 units_per_strip: per_strip,
@@ -389,6 +391,7 @@ fn model() {
                 prepare_s,
                 load_core_s,
                 thread_efficiency: 1.0,
+                relay,
             };
             let r = simulate(&sim, &lab, &net, Policy::default());
             let mut dying = lab.clone();

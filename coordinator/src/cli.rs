@@ -87,8 +87,9 @@ pub(crate) struct RenderArgs {
     #[arg(long, conflicts_with = "cache_dir")]
     pub(crate) no_cache: bool,
     /// How workers get the photon maps of `photon-map` and `final-gather`: `ship` (traced here once, uploaded
-    /// to each), `trace` (each worker traces them itself; the same bits), or `auto` (a cost model measured on
-    /// this machine chooses per job; the summary line says which and what it modelled).
+    /// to each), `peers` (traced here once, uploaded to one worker at a time and passed on among the workers),
+    /// `trace` (each worker traces them itself; the same bits), or `auto` (a cost model measured on this machine
+    /// chooses per job; the summary line says which and what it modelled).
     #[arg(long, value_enum, default_value_t = crate::delivery::MapDelivery::Auto)]
     pub(crate) photon_maps: crate::delivery::MapDelivery,
 }

@@ -63,7 +63,10 @@ fn render(args: RenderArgs) -> Result<()> {
         delivery::Farm::default()
     };
     let decide = |prep: &Prepared| delivery::choose(args.photon_maps, prep, &model_farm);
-    let (job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
+    let (mut job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
+    if delivery.is_some_and(|d| d.mode == MapDelivery::Peers) {
+        job.swarm = Some(std::sync::Arc::new(crate::swarm::Swarm::new(tls_ca.clone())));
+    }
     let (width, height) = (job.width, job.height);
     let settings = scene.render.clone();
     let prepare_s = t0.elapsed().as_secs_f64();
@@ -134,7 +137,8 @@ async fn model_farm(
             (threads, delivery::LINK_BYTES_PER_S)
         }
     };
-    delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s }
+    let shared_link = !matches!(spec, fleet::FleetSpec::Remote(_));
+    delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }
 }
 
 /// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is

@@ -1,7 +1,8 @@
 //! How each worker gets a job's photon maps: **shipped** from the coordinator (which traces them once, builds
-//! them and uploads the blob to every worker), or **traced** by every worker itself from the deterministic
-//! photon streams (only the scene blob travels). Both give the same maps, bit for bit, so the image does not
-//! depend on the choice; only the time does.
+//! them and uploads the blob to every worker), passed among **peers** (the coordinator uploads the blob to one
+//! worker at a time and every worker holding it sends it on to another, [`crate::swarm`]), or **traced** by
+//! every worker itself from the deterministic photon streams (only the scene blob travels). All give the same
+//! maps, bit for bit, so the image does not depend on the choice; only the time does.
 //!
 //! [`choose`] decides per job from a cost model calibrated on this machine: it traces a sample of the job's
 //! photon paths here, builds, encodes and decodes their map, and scales the measured costs to the job
@@ -10,6 +11,9 @@
 //!
 //! - ship: `(P·t_path + build(n)) / T_c + encode(B) + (N+1)/2 · B/link + mean_w (decode(B) + build(n)) / T_w`,
 //!   the uploads sharing the coordinator's link, so the i-th worker waits for i blobs;
+//! - peers: the same with `mean_i (⌊log₂ i⌋ + 1) · B/link` for the upload, the i-th worker receiving in round
+//!   ⌊log₂ i⌋ + 1 over links of its own (the holders double each round); workers on this machine share one
+//!   link, and then peers cost what shipping does;
 //! - trace: `mean_w (P·t_path + build(n)) / T_w`,
 //!
 //! with `P` photon paths of `n` photons in a blob of `B` bytes, `T_c` threads here, `N` workers of `T_w`
@@ -33,8 +37,17 @@ pub enum MapDelivery {
     Auto,
     /// Traced here once and shipped to every worker.
     Ship,
+    /// Traced here once, uploaded to one worker at a time and passed on among the workers.
+    Peers,
     /// Traced by every worker itself.
     Trace,
+}
+
+impl MapDelivery {
+    /// Whether the coordinator traces the maps and the job carries them as a blob.
+    pub fn ships(self) -> bool {
+        matches!(self, Self::Ship | Self::Peers)
+    }
 }
 
 /// Bytes per second of a loopback upload (docs/RESULTS.md, "Shipping photon maps": 300–334 MB/s).
@@ -70,8 +83,10 @@ pub struct Farm {
     pub worker_threads: Vec<u32>,
     /// Threads of this machine, which traces and builds the maps it ships.
     pub coordinator_threads: u32,
-    /// Bytes per second of the coordinator's link, which the uploads share.
+    /// Bytes per second of the coordinator's link, which the uploads share, and of each worker's.
     pub link_bytes_per_s: f64,
+    /// The workers run on this machine and share its one link (loopback).
+    pub shared_link: bool,
 }
 
 /// The model's mean seconds until a worker holds the maps, for each mode.
@@ -81,12 +96,14 @@ pub struct Estimate {
     pub ship_s: f64,
     /// Traced by each worker.
     pub trace_s: f64,
+    /// Passed among the workers.
+    pub peers_s: f64,
 }
 
 /// What was chosen, and why.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Decision {
-    /// [`MapDelivery::Ship`] or [`MapDelivery::Trace`].
+    /// [`MapDelivery::Ship`], [`MapDelivery::Peers`] or [`MapDelivery::Trace`].
     pub mode: MapDelivery,
     /// Whether `--photon-maps` forced it.
     pub forced: bool,
@@ -149,7 +166,14 @@ impl Calibration {
         let prepare = (trace + build) / threads_c + self.encode_s_per_byte * bytes;
         let upload = (workers + 1.0) / 2.0 * bytes / farm.link_bytes_per_s;
         let load = mean_over_workers(&|t| self.decode_s_per_byte * bytes + build / t);
-        Estimate { ship_s: prepare + upload + load, trace_s: mean_over_workers(&|t| (trace + build) / t) }
+        let n = farm.worker_threads.len().max(1);
+        let rounds = (1..=n).map(|i| f64::from(i.ilog2() + 1)).sum::<f64>() / n as f64;
+        let relay = if farm.shared_link { upload } else { rounds * bytes / farm.link_bytes_per_s };
+        Estimate {
+            ship_s: prepare + upload + load,
+            trace_s: mean_over_workers(&|t| (trace + build) / t),
+            peers_s: prepare + relay + load,
+        }
     }
 }
 
@@ -165,7 +189,15 @@ pub fn choose(requested: MapDelivery, prep: &Prepared, farm: &Farm) -> Decision 
     };
     let estimate = calibration.estimate(paths, farm);
     tracing::info!(?calibration, ?estimate, "photon-map delivery model");
-    let mode = if estimate.trace_s <= estimate.ship_s { MapDelivery::Trace } else { MapDelivery::Ship };
+    // The cheapest; on a tie the one that moves fewer bytes, then the one with fewer moving parts.
+    let mode = [
+        (estimate.trace_s, MapDelivery::Trace),
+        (estimate.ship_s, MapDelivery::Ship),
+        (estimate.peers_s, MapDelivery::Peers),
+    ]
+    .into_iter()
+    .reduce(|best, next| if next.0 < best.0 { next } else { best })
+    .map_or(MapDelivery::Trace, |(_, mode)| mode);
     Decision { mode, forced: false, estimate: Some(estimate) }
 }
 
@@ -199,11 +231,16 @@ impl fmt::Display for Decision {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let what = match self.mode {
             MapDelivery::Trace => "traced by each worker",
+            MapDelivery::Peers => "traced here and passed among the workers",
             _ => "traced here and shipped",
         };
         match (self.forced, self.estimate) {
             (true, _) => write!(f, "{what} (--photon-maps)"),
-            (false, Some(e)) => write!(f, "{what} (modelled {:.2} s traced, {:.2} s shipped)", e.trace_s, e.ship_s),
+            (false, Some(e)) => write!(
+                f,
+                "{what} (modelled {:.2} s traced, {:.2} s shipped, {:.2} s among peers)",
+                e.trace_s, e.ship_s, e.peers_s
+            ),
             (false, None) => write!(f, "{what}"),
         }
     }
@@ -226,7 +263,12 @@ mod tests {
     }
 
     fn farm(workers: &[u32], coordinator: u32, link: f64) -> Farm {
-        Farm { worker_threads: workers.to_vec(), coordinator_threads: coordinator, link_bytes_per_s: link }
+        Farm {
+            worker_threads: workers.to_vec(),
+            coordinator_threads: coordinator,
+            link_bytes_per_s: link,
+            shared_link: link == LOOPBACK_BYTES_PER_S,
+        }
     }
 
     #[test]
@@ -260,6 +302,26 @@ mod tests {
         // Shipping grows with the number of workers, tracing does not.
         let two = calibration().estimate(4_000_000, &farm(&[6, 6], 6, LINK_BYTES_PER_S));
         assert!(e.ship_s > 5.0 * two.ship_s && (e.trace_s - two.trace_s).abs() < two.trace_s, "{e:?} {two:?}");
+    }
+
+    #[test]
+    fn peers_win_where_shipping_would_and_the_link_is_the_cost() {
+        // The costly scene of weak_workers_get_costly_maps_shipped, on 52 one-thread machines behind 1 Gbit/s:
+        // shipping beats tracing, and passing the blob on among the workers beats shipping it 52 times.
+        let costly = Calibration { trace_s_per_path: 1.5e-5, ..calibration() };
+        let lab = farm(&[1; 52], 16, LINK_BYTES_PER_S);
+        let e = costly.estimate(4_000_000, &lab);
+        assert!(e.peers_s < e.ship_s && e.ship_s < e.trace_s, "{e:?}");
+        // The i-th worker receives in round ⌊log₂ i⌋ + 1: 52 workers wait 4.90 blob times on average, not 26.5.
+        let bytes = 4e6 * 1.67 * 36.0;
+        let saved = e.ship_s - e.peers_s;
+        assert!((saved - (26.5 - 255.0 / 52.0) * bytes / LINK_BYTES_PER_S).abs() < 1e-6 * saved, "{e:?}");
+        // One worker: one upload either way.
+        let one = costly.estimate(4_000_000, &farm(&[1], 16, LINK_BYTES_PER_S));
+        assert!((one.peers_s - one.ship_s).abs() < 1e-9, "{one:?}");
+        // Workers on this machine share its link: passing the blob on saves nothing.
+        let local = costly.estimate(4_000_000, &farm(&[1; 16], 16, LOOPBACK_BYTES_PER_S));
+        assert_eq!(local.peers_s, local.ship_s);
     }
 
     #[test]

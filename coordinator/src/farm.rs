@@ -216,6 +216,8 @@ struct Member {
     client: Option<Client>,
     hello: Option<pb::HelloReply>,
     shipped: u64,
+    /// Blob bytes it fetched from other workers.
+    fetched: u64,
     ship_s: f64,
     /// Why it is out, if it is (refused, lost, dropped).
     out: Option<String>,
@@ -296,6 +298,7 @@ impl<'a> Farm<'a> {
                 client: None,
                 hello: None,
                 shipped: 0,
+                fetched: 0,
                 ship_s: 0.0,
                 out: None,
                 rows_live: 0,
@@ -429,7 +432,7 @@ impl<'a> Farm<'a> {
         }
         self.unresolved -= 1;
         self.first_ready.get_or_insert_with(Instant::now);
-        let Ready { client, hello, shipped, ship_s } = ready;
+        let Ready { client, hello, shipped, fetched, ship_s } = ready;
         let other_mode = self.members.iter().find_map(|o| {
             o.hello.as_ref().filter(|h| h.math_mode != hello.math_mode).map(|h| (&o.addr.name, &h.math_mode))
         });
@@ -445,20 +448,21 @@ impl<'a> Farm<'a> {
         let m = &mut self.members[worker.0 as usize];
         tracing::info!(
             worker = %m.addr.name, arch = %hello.arch, math = %hello.math_mode, threads = hello.threads,
-            shipped, ship_s, "ready"
+            shipped, fetched, ship_s, "ready"
         );
         self.sched.add_worker(worker, hello.threads);
-        (m.client, m.hello, m.shipped, m.ship_s) = (Some(client), Some(hello), shipped, ship_s);
+        (m.client, m.hello, m.shipped, m.fetched, m.ship_s) = (Some(client), Some(hello), shipped, fetched, ship_s);
     }
 
     /// A lost worker that answered again, with the same build: it takes strips again.
     fn on_rejoined(&mut self, worker: WorkerId, ready: Ready) {
-        let Ready { client, hello, shipped, .. } = ready;
+        let Ready { client, hello, shipped, fetched, .. } = ready;
         let m = &mut self.members[worker.0 as usize];
         tracing::info!(worker = %m.addr.name, threads = hello.threads, shipped, "rejoined");
         if self.sched.rejoin(worker, hello.threads) {
             self.warnings.push(Warning::Rejoined { worker: m.addr.name.clone(), shipped });
             m.shipped += shipped;
+            m.fetched += fetched;
             (m.client, m.hello, m.out) = (Some(client), Some(hello), None);
         }
     }
@@ -754,6 +758,7 @@ impl<'a> Farm<'a> {
                     busy_s,
                     mpix_per_s: if busy_s > 0.0 { rows as f64 * f64::from(width) / 1e6 / busy_s } else { 0.0 },
                     shipped_bytes: m.shipped,
+                    fetched_bytes: m.fetched,
                     ship_s: m.ship_s,
                     speculative,
                     duplicates,

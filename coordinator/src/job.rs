@@ -2,7 +2,7 @@
 //! built by [`prepare_job`], through the prepared-blob cache when there is one), and the strips finished so far
 //! ([`Partial`]), kept in a partial file beside the output for `--resume`.
 
-use crate::delivery::{Decision, MapDelivery};
+use crate::delivery::Decision;
 use crate::prepared_cache::PreparedCacheError;
 use crate::prepared_cache::{self, PreparedCache};
 use photon_core::codec::CodecError;
@@ -84,6 +84,9 @@ pub struct Job {
     /// The pass count when the method is progressive photon mapping: the farm then hands out whole-image pass
     /// blocks ([`crate::scheduler::passes_per_block_for`]) instead of strips of rows.
     pub passes: Option<u32>,
+    /// The workers pass big blobs among themselves (`--photon-maps peers`) instead of each receiving them
+    /// from the coordinator.
+    pub swarm: Option<Arc<crate::swarm::Swarm>>,
 }
 
 impl Job {
@@ -106,7 +109,7 @@ impl Job {
         let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
         let passes = progressive.then_some(settings.photons.passes.max(1));
         let trace_photons = settings.integrator.needs_photon_maps() && photons_blob.is_none();
-        Self { scene_blob, photons_blob, blobs, frame, width, height, passes, trace_photons }
+        Self { scene_blob, photons_blob, blobs, frame, width, height, passes, trace_photons, swarm: None }
     }
 
     /// A fingerprint of everything that decides the pixels: the scene blob, the frame and the size. A partial
@@ -167,7 +170,7 @@ pub fn prepare_job(
         let scene_blob = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
         let decision = needs_photons.then(|| delivery(&prep));
         let photons = match decision {
-            Some(d) if d.mode == MapDelivery::Ship => {
+            Some(d) if d.mode.ships() => {
                 let prep = prep.with_photon_maps(scene_path)?;
                 prep.encode_photons().map_err(|e| JobError::Encode("photon maps", e))?
             }
@@ -198,7 +201,7 @@ pub fn prepare_job(
             .map_err(|cause| JobError::DecodeCached { dir: cache.dir().into(), cause })?,
     };
     let decision = delivery(&prep);
-    if decision.mode != MapDelivery::Ship {
+    if !decision.mode.ships() {
         let hits = prepared_cache::Hits { scene: scene_hit, photons: false };
         return Ok((job(scene_blob, None), Some(hits), Some(decision)));
     }

@@ -29,4 +29,5 @@ pub mod rejoin;
 pub mod report;
 pub mod scheduler;
 pub mod session;
+pub mod swarm;
 pub mod sweep;

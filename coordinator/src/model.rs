@@ -4,7 +4,9 @@
 //! What is modelled:
 //! - the coordinator prepares the job (serially, [`SimJob::prepare_s`]), then uploads the blobs to every
 //!   worker over its own link, one after another (first come, first served: the last worker waits for all the
-//!   others' uploads, as on a shared link); a worker decodes them ([`SimJob::load_core_s`]) and is ready;
+//!   others' uploads, as on a shared link), or, with [`SimJob::relay`], to one worker at a time while every
+//!   worker holding them sends them on to one more ([`crate::swarm`]); a worker decodes them
+//!   ([`SimJob::load_core_s`]) and is ready;
 //! - a worker renders one unit at a time on all its cores, at `cores × core_speed × thread_efficiency`
 //!   reference cores, and holds up to the policy's `max_in_flight` units;
 //! - a result crosses the worker's link and the coordinator's downlink, which results share first come, first
@@ -74,6 +76,9 @@ pub struct SimJob {
     pub load_core_s: f64,
     /// Fraction of linear speed-up within one worker (0..=1]: measured thread scaling.
     pub thread_efficiency: f64,
+    /// The workers pass the blobs on among themselves (`--photon-maps peers`): the holders double with each
+    /// transfer time, so the i-th worker (from 0) holds them after ⌊log₂(i+1)⌋ + 1 transfers.
+    pub relay: bool,
 }
 
 /// Where the time went.
@@ -175,12 +180,12 @@ pub fn simulate(job: &SimJob, workers: &[SimWorker], net: &Network, policy: Poli
         queue_empty_at: None,
         failures: 0,
     };
-    // Uploads one after another on the coordinator's link.
+    // Uploads one after another on the coordinator's link, or passed on in rounds.
     let upload = job.blob_bytes / net.coordinator_bps.min(net.worker_bps);
-    let mut uplink = job.prepare_s;
     for (i, w) in workers.iter().enumerate() {
-        uplink += upload;
-        sim.push(uplink + net.rtt_s + job.load_core_s / sim.speed(i), Kind::Ready(i));
+        let transfers = if job.relay { f64::from((i + 1).ilog2() + 1) } else { (i + 1) as f64 };
+        let held = job.prepare_s + transfers * upload;
+        sim.push(held + net.rtt_s + job.load_core_s / sim.speed(i), Kind::Ready(i));
         if let Some(t) = w.dies_at {
             sim.push(t, Kind::Dies(i));
         }
@@ -348,6 +353,7 @@ mod tests {
             prepare_s: 2.0,
             load_core_s: 0.5,
             thread_efficiency: 1.0,
+            relay: false,
         }
     }
 
@@ -413,5 +419,11 @@ mod tests {
         let r = simulate(&j, &same(4, 4), &net, Policy::default());
         // Four 2 s uploads one after another: the last worker is ready 8 s (and its decode) after preparing.
         assert!((r.ship_s - (8.0 + net.rtt_s + 0.5 / 4.0)).abs() < 1e-6, "{r:?}");
+        // Passed on among the workers: 1 + 2 + 4 hold them after three transfers, the 8th after four.
+        let relayed = SimJob { relay: true, ..j };
+        for (n, transfers) in [(1, 1.0), (3, 2.0), (4, 3.0), (7, 3.0), (8, 4.0)] {
+            let r = simulate(&relayed, &same(n, 4), &net, Policy::default());
+            assert!((r.ship_s - (2.0 * transfers + net.rtt_s + 0.5 / 4.0)).abs() < 1e-6, "{n}: {r:?}");
+        }
     }
 }

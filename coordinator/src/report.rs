@@ -23,8 +23,10 @@ pub struct WorkerReport {
     pub busy_s: f64,
     /// Megapixels accepted per busy second.
     pub mpix_per_s: f64,
-    /// Blob bytes shipped to it.
+    /// Blob bytes shipped to it from the coordinator.
     pub shipped_bytes: u64,
+    /// Blob bytes it fetched from other workers (`--photon-maps peers`).
+    pub fetched_bytes: u64,
     /// Seconds spent shipping to it.
     pub ship_s: f64,
     /// Speculative copies it was given (tail duplicates of strips running elsewhere).
@@ -46,7 +48,7 @@ pub struct WorkerReport {
 /// The per-worker table.
 pub fn print_workers(workers: &[WorkerReport]) {
     println!(
-        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>7} {:>7} {:>12} {:>8} {:>8} {:>8}  state",
+        "{:<16} {:<14} {:>7} {:>6} {:>8} {:>8} {:>10} {:>10} {:>7} {:>7} {:>12} {:>8} {:>8} {:>8}  state",
         "worker",
         "platform",
         "threads",
@@ -54,6 +56,7 @@ pub fn print_workers(workers: &[WorkerReport]) {
         "busy s",
         "Mpx/s",
         "shipped",
+        "from peers",
         "ship s",
         "load s",
         "photon paths",
@@ -63,7 +66,7 @@ pub fn print_workers(workers: &[WorkerReport]) {
     );
     for w in workers {
         println!(
-            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>7.2} {:>7.2} {:>12} {:>8.2} {:>8} {:>8}  {}",
+            "{:<16} {:<14} {:>7} {:>6} {:>8.2} {:>8.3} {:>10} {:>10} {:>7.2} {:>7.2} {:>12} {:>8.2} {:>8} {:>8}  {}",
             w.name,
             w.platform,
             w.threads,
@@ -71,6 +74,7 @@ pub fn print_workers(workers: &[WorkerReport]) {
             w.busy_s,
             w.mpix_per_s,
             human_bytes(w.shipped_bytes),
+            human_bytes(w.fetched_bytes),
             w.ship_s,
             w.load_s,
             w.photon_paths,
@@ -137,13 +141,15 @@ impl Summary<'_> {
         if let Some(h) = self.hits {
             let word = |hit: bool| if hit { "cached" } else { "built" };
             extras.push_str(&format!(", scene {}", word(h.scene)));
-            if settings.integrator.needs_photon_maps() && self.delivery.is_none_or(|d| d.mode == MapDelivery::Ship) {
+            if settings.integrator.needs_photon_maps() && self.delivery.is_none_or(|d| d.mode.ships()) {
                 extras.push_str(&format!(", photons {}", word(h.photons)));
             }
         }
+        let fetched = outcome.workers.iter().map(|w| w.fetched_bytes).sum::<u64>();
+        let peers = if fetched > 0 { format!(" (+{fetched} passed between workers)") } else { String::new() };
         format!(
             "{}: {width}x{height}, {samples}, {}, {:.2} s render (+{:.2} s prepare, {:.2} s ship, {:.2} s assemble), \
-             {:.2} Mrays/s, {} blob bytes shipped{extras}",
+             {:.2} Mrays/s, {} blob bytes shipped{peers}{extras}",
             self.output.display(),
             settings.integrator,
             outcome.render_s,

@@ -192,8 +192,10 @@ pub struct Ready {
     pub client: Client,
     /// Its hello.
     pub hello: pb::HelloReply,
-    /// Blob bytes shipped to it.
+    /// Blob bytes shipped to it from the coordinator.
     pub shipped: u64,
+    /// Blob bytes it fetched from other workers ([`crate::swarm`]).
+    pub fetched: u64,
     /// Seconds from the start of the session until it was ready.
     pub ship_s: f64,
 }
@@ -218,8 +220,9 @@ pub async fn open_with_patience(
 ) -> Result<Ready, SessionError> {
     let started = Instant::now();
     let mut client = connect(&addr.uri, token, tls_ca, patience).await?;
-    let (hello, shipped) = introduce(&mut client, job).await?;
-    Ok(Ready { client, hello, shipped, ship_s: started.elapsed().as_secs_f64() })
+    let (hello, delivered) = introduce(&mut client, job, &addr.uri).await?;
+    let (shipped, fetched) = (delivered.shipped, delivered.fetched);
+    Ok(Ready { client, hello, shipped, fetched, ship_s: started.elapsed().as_secs_f64() })
 }
 
 /// Whether a hello that failed with `code` got no answer from a worker (the connection died: a worker going
@@ -228,8 +231,19 @@ pub fn unanswered(code: Code) -> bool {
     matches!(code, Code::Unavailable | Code::Unknown | Code::Internal | Code::Cancelled)
 }
 
-/// Says hello and ships the blobs the worker lacks; returns its reply, the bytes shipped and the seconds taken.
-pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply, u64), SessionError> {
+/// Blob bytes a worker received for a job.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Delivered {
+    /// From the coordinator.
+    pub shipped: u64,
+    /// From other workers.
+    pub fetched: u64,
+}
+
+/// Says hello and gets the worker the blobs it lacks: uploaded from here, or, for the big blobs of a job with a
+/// [`Swarm`](crate::swarm::Swarm), fetched from another worker when one is free to send. `uri` is the worker's
+/// address as the other workers reach it. Returns its reply and the bytes it received.
+pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb::HelloReply, Delivered), SessionError> {
     let hello = hello(client).await?;
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
     let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
@@ -238,7 +252,7 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
         .map_err(|s| SessionError::BlobList(status_line(&s)))?
         .into_inner()
         .missing;
-    let mut shipped = 0;
+    let mut delivered = Delivered::default();
     for id in missing {
         let Some(blob) = job.blobs.get(&id) else {
             return Err(SessionError::UnknownBlob(id));
@@ -246,9 +260,61 @@ pub async fn introduce(client: &mut Client, job: &Job) -> Result<(pb::HelloReply
         if blob.len() as u64 > hello.max_blob_bytes {
             return Err(SessionError::BlobTooLarge { size: blob.len() as u64, limit: hello.max_blob_bytes });
         }
-        shipped += put_blob(client, &id, blob.clone()).await?;
+        match &job.swarm {
+            Some(swarm) if blob.len() >= crate::swarm::MIN_PEER_BYTES => {
+                let got = through_swarm(client, swarm, &id, blob, uri).await?;
+                delivered.shipped += got.shipped;
+                delivered.fetched += got.fetched;
+            }
+            _ => delivered.shipped += put_blob(client, &id, blob.clone()).await?,
+        }
     }
-    Ok((hello, shipped))
+    Ok((hello, delivered))
+}
+
+/// Gets blob `id` to the worker at `uri` from the first free source: a peer holding it (falling back to the
+/// next source when the fetch fails) or the coordinator.
+async fn through_swarm(
+    client: &mut Client,
+    swarm: &crate::swarm::Swarm,
+    id: &str,
+    blob: &Arc<Vec<u8>>,
+    uri: &str,
+) -> Result<Delivered, SessionError> {
+    use crate::swarm::Source;
+    loop {
+        let source = swarm.source(id, uri).await;
+        let Source::Peer(peer) = &source else {
+            let shipped = put_blob(client, id, blob.clone()).await;
+            swarm.done(id, &source, uri, shipped.is_ok());
+            return Ok(Delivered { shipped: shipped?, fetched: 0 });
+        };
+        let request = pb::FetchBlobRequest {
+            blob: Some(pb::BlobHeader { id: id.to_owned(), size: blob.len() as u64 }),
+            peer: peer.clone(),
+            tls_ca: swarm.tls_ca.clone().unwrap_or_default(),
+        };
+        let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
+        match tokio::time::timeout(limit, client.fetch_blob(request)).await {
+            Ok(Ok(reply)) => {
+                swarm.done(id, &source, uri, true);
+                return Ok(Delivered { shipped: 0, fetched: reply.into_inner().stored });
+            }
+            Ok(Err(status)) => {
+                tracing::info!(
+                    peer,
+                    receiver = uri,
+                    "fetch from a peer failed ({}); next source",
+                    status_line(&status)
+                );
+                swarm.done(id, &source, uri, false);
+            }
+            Err(_) => {
+                tracing::info!(peer, receiver = uri, "fetch from a peer took over {} s; next source", limit.as_secs());
+                swarm.done(id, &source, uri, false);
+            }
+        }
+    }
 }
 
 /// Says hello: the worker answers with what it is, or refuses another protocol or build (or a wrong token).
@@ -281,26 +347,16 @@ pub async fn hello(client: &mut Client) -> Result<pb::HelloReply, SessionError> 
 pub async fn put_blob(client: &mut Client, id: &str, blob: Arc<Vec<u8>>) -> Result<u64, SessionError> {
     let header = pb::BlobHeader { id: id.to_owned(), size: blob.len() as u64 };
     let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
-    let reply = tokio::time::timeout(limit, client.put_blob(tokio_stream::iter(chunk_messages(header, blob))))
-        .await
-        .map_err(|_| SessionError::ShipTimeout { id: id.to_owned(), limit })?
-        .map_err(|s| SessionError::Ship { id: id.to_owned(), status: status_line(&s) })?;
+    let reply =
+        tokio::time::timeout(limit, client.put_blob(tokio_stream::iter(photon_proto::blob_chunks(header, blob))))
+            .await
+            .map_err(|_| SessionError::ShipTimeout { id: id.to_owned(), limit })?
+            .map_err(|s| SessionError::Ship { id: id.to_owned(), status: status_line(&s) })?;
     Ok(reply.into_inner().stored)
 }
 
 /// How long a worker may take to answer a short call (hello, the blob list).
 pub const ANSWER_TIMEOUT: Duration = Duration::from_secs(30);
-
-/// The upload messages of a blob, made lazily: the header rides with the first chunk.
-pub fn chunk_messages(header: pb::BlobHeader, blob: Arc<Vec<u8>>) -> impl Iterator<Item = pb::BlobChunk> {
-    let n = blob.len().div_ceil(photon_proto::MAX_CHUNK).max(1);
-    let mut header = Some(header);
-    (0..n).map(move |i| {
-        let lo = i * photon_proto::MAX_CHUNK;
-        let hi = (lo + photon_proto::MAX_CHUNK).min(blob.len());
-        pb::BlobChunk { header: header.take(), data: blob[lo..hi].to_vec() }
-    })
-}
 
 /// Why a strip call brought back no valid strip. Each message is the one the log and the worker table show.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]

@@ -11,13 +11,15 @@ use std::path::Path;
 #[test]
 fn no_nan_inf_or_negative_pixel() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
-    let mut scenes: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
+    let mut scenes: Vec<_> = [dir.clone(), dir.join("stress")]
+        .iter()
+        .flat_map(|d| std::fs::read_dir(d).unwrap())
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "toml"))
         .collect();
     scenes.sort();
-    assert!(scenes.len() >= 4);
+    assert!(scenes.iter().filter(|p| p.parent().is_some_and(|d| d.ends_with("stress"))).count() >= 12);
+    assert!(scenes.len() >= 16);
     for path in &scenes {
         for integrator in Integrator::ALL {
             let mut scene = Scene::load(path).unwrap();

@@ -16,7 +16,7 @@ pub mod pb {
 }
 
 /// Version of the protocol; raise it with every incompatible change of `render.proto` or of its meaning.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// A hash of the code that decides what a worker renders and how it speaks (core, proto, worker and the locked
 /// dependencies): coordinator and workers must have the same one.
@@ -37,6 +37,18 @@ pub const TOKEN_KEY: &str = "authorization";
 /// The id of a blob: the lowercase hex BLAKE3 hash of its bytes (64 characters).
 pub fn blob_id(bytes: &[u8]) -> String {
     blake3::hash(bytes).to_hex().to_string()
+}
+
+/// The messages of a blob's stream (a `PutBlob` upload or a `GetBlob` answer), made lazily: the header rides
+/// with the first chunk, and each chunk of at most [`MAX_CHUNK`] bytes is copied only as the stream is sent.
+pub fn blob_chunks(header: pb::BlobHeader, blob: std::sync::Arc<Vec<u8>>) -> impl Iterator<Item = pb::BlobChunk> {
+    let n = blob.len().div_ceil(MAX_CHUNK).max(1);
+    let mut header = Some(header);
+    (0..n).map(move |i| {
+        let lo = i * MAX_CHUNK;
+        let hi = (lo + MAX_CHUNK).min(blob.len());
+        pb::BlobChunk { header: header.take(), data: blob[lo..hi].to_vec() }
+    })
 }
 
 /// Whether `id` has the form of a blob id (64 lowercase hex digits).

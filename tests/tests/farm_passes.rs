@@ -57,9 +57,10 @@ fn paths_in_summary(o: &Output) -> u64 {
 fn row(o: &Output, addr: &str) -> (u64, u64) {
     let stdout = String::from_utf8_lossy(&o.stdout);
     let line = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("{}", text(o)));
-    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), ship s, load s, photon paths
+    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s,
+    // load s, photon paths
     let words: Vec<&str> = line.split_whitespace().collect();
-    (words[4].parse().unwrap(), words[11].parse().unwrap())
+    (words[4].parse().unwrap(), words[13].parse().unwrap())
 }
 
 fn workers_arg(ws: &[&WorkerProcess]) -> String {

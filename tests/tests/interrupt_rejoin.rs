@@ -185,8 +185,8 @@ fn a_frozen_worker_is_reported_stalled_not_ok() {
     assert!(o.status.success(), "{}", text(&o));
     assert!(bits(&out) == want, "the image changed with a frozen worker");
     let line = row(&o, &frozen.addr);
-    // Frozen for less than the keep-alive's 30 s, so not lost: stalled, in the state column (the 16th word).
+    // Frozen for less than the keep-alive's 30 s, so not lost: stalled, in the state column (the 18th word).
     assert!(line.ends_with("stalled"), "{}", text(&o));
-    assert_eq!(line.split_whitespace().count(), 16, "{line}");
+    assert_eq!(line.split_whitespace().count(), 18, "{line}");
     assert!(row(&o, &steady.addr).ends_with("ok"), "{}", text(&o));
 }

@@ -1,6 +1,6 @@
-//! How workers get the photon maps (`--photon-maps ship|trace|auto`): shipped from the coordinator or traced by
-//! each worker from the deterministic photon streams, the image is the same, bit for bit; the summary says
-//! which way was used, and the end table shows who traced what.
+//! How workers get the photon maps (`--photon-maps ship|peers|trace|auto`): shipped from the coordinator,
+//! passed among the workers, or traced by each worker from the deterministic photon streams, the image is the
+//! same, bit for bit; the summary says which way was used, and the end table shows who traced or sent what.
 
 #![allow(clippy::unwrap_used)]
 
@@ -28,13 +28,32 @@ fn bits(path: &Path) -> Vec<u32> {
     Image::read(path).unwrap().pixels.iter().map(|v| v.to_bits()).collect()
 }
 
-/// A worker's row of the end table: (units it rendered, blob bytes shipped to it, photon paths it traced).
-fn row(o: &Output, addr: &str) -> (u64, String, u64) {
+/// A worker's row of the end table: units it rendered, blob bytes shipped to it from the coordinator and from
+/// peers, photon paths it traced.
+struct Row {
+    units: u64,
+    shipped: String,
+    fetched: String,
+    paths: u64,
+}
+
+fn row(o: &Output, addr: &str) -> Row {
     let stdout = String::from_utf8_lossy(&o.stdout);
     let line = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("{}", text(o)));
-    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), ship s, load s, photon paths
+    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s,
+    // load s, photon paths
     let words: Vec<&str> = line.split_whitespace().collect();
-    (words[4].parse().unwrap(), format!("{} {}", words[7], words[8]), words[11].parse().unwrap())
+    Row {
+        units: words[4].parse().unwrap(),
+        shipped: format!("{} {}", words[7], words[8]),
+        fetched: format!("{} {}", words[9], words[10]),
+        paths: words[13].parse().unwrap(),
+    }
+}
+
+/// Whether a table's byte count is a megabyte or more (a photons blob), not a scene blob's kilobytes.
+fn megabytes(bytes: &str) -> bool {
+    bytes.ends_with("MiB")
 }
 
 #[test]
@@ -47,7 +66,7 @@ fn shipped_traced_and_chosen_maps_give_the_same_bytes() {
         assert!(o.status.success(), "{}", text(&o));
         let want = bits(&in_process);
         assert!(want.iter().any(|&v| f32::from_bits(v) > 0.0), "{method}: a black image");
-        for mode in ["ship", "trace", "auto"] {
+        for mode in ["ship", "peers", "trace", "auto"] {
             // Fresh workers for each mode: a worker keeps the maps it traced for the next render of the job.
             let ws: Vec<WorkerProcess> = (0..2).map(|_| WorkerProcess::start(&["--threads", "1"])).collect();
             let list = format!("{},{}", ws[0].addr, ws[1].addr);
@@ -59,24 +78,39 @@ fn shipped_traced_and_chosen_maps_give_the_same_bytes() {
             let traced = summary.contains("photon maps traced by each worker");
             match mode {
                 "ship" => assert!(summary.contains("traced here and shipped (--photon-maps)"), "{}", text(&o)),
+                "peers" => assert!(
+                    summary.contains("passed among the workers (--photon-maps)")
+                        && summary.contains("passed between workers"),
+                    "{}",
+                    text(&o)
+                ),
                 "trace" => assert!(traced && summary.contains("(--photon-maps)"), "{}", text(&o)),
-                // Auto names the model's two estimates, whichever it chose.
-                _ => assert!(summary.contains("(modelled ") && summary.contains(" s shipped)"), "{}", text(&o)),
+                // Auto names the model's three estimates, whichever it chose.
+                _ => assert!(summary.contains("(modelled ") && summary.contains(" s among peers)"), "{}", text(&o)),
             }
-            // Tracing workers trace every path of the maps themselves, once each, when they render anything (a
-            // worker the others outran before its first strip traces nothing), and are shipped no photons.
+            if mode == "peers" {
+                // The coordinator uploads the maps to one worker; the other fetches them from it.
+                let rows: Vec<Row> = ws.iter().map(|w| row(&o, &w.addr)).collect();
+                let from_here = rows.iter().filter(|r| megabytes(&r.shipped)).count();
+                let from_peer = rows.iter().filter(|r| megabytes(&r.fetched) && !megabytes(&r.shipped)).count();
+                assert_eq!((from_here, from_peer), (1, 1), "{}", text(&o));
+            }
+            // Tracing workers trace every path of the maps themselves, once each, and report it with a finished
+            // strip: one that rendered a strip reports them; one the others outran may have traced for a strip
+            // that was cancelled (or rendered one whose copy lost) and reports all of them or none. They are
+            // shipped no photons.
             let caustic = u64::from(method == "final-gather");
             let mut tracers = 0;
             for w in &ws {
-                let (units, shipped, paths) = row(&o, &w.addr);
+                let Row { units, shipped, paths, .. } = row(&o, &w.addr);
                 if traced {
-                    let want = if units > 0 { PATHS * (1 + caustic) } else { 0 };
-                    assert_eq!(paths, want, "{method} {mode}: {}", text(&o));
+                    let all = PATHS * (1 + caustic);
+                    assert!(paths == all || (units == 0 && paths == 0), "{method} {mode}: {}", text(&o));
                     tracers += usize::from(units > 0);
                     assert!(shipped.ends_with(" B") || shipped.ends_with("KiB"), "{method} {mode}: {shipped}");
                 } else {
                     assert_eq!(paths, 0, "{method} {mode}: {}", text(&o));
-                    assert!(shipped.ends_with("MiB"), "{method} {mode}: {shipped}");
+                    assert!(mode == "peers" || megabytes(&shipped), "{method} {mode}: {shipped}");
                 }
             }
             assert!(!traced || tracers >= 1, "{method} {mode}: nobody traced: {}", text(&o));
@@ -86,14 +120,103 @@ fn shipped_traced_and_chosen_maps_give_the_same_bytes() {
                 let o = render(&out, method, &["--workers", &list, "--photon-maps", mode]);
                 assert!(o.status.success() && bits(&out) == want, "{method} {mode} again: {}", text(&o));
                 // (A worker that rendered nothing the first time may trace now, for its first strip.)
-                let first_units: Vec<u64> = ws.iter().map(|w| row(&first, &w.addr).0).collect();
+                let first_units: Vec<u64> = ws.iter().map(|w| row(&first, &w.addr).units).collect();
                 for (w, before) in ws.iter().zip(first_units) {
-                    let (_, _, paths) = row(&o, &w.addr);
+                    let paths = row(&o, &w.addr).paths;
                     assert!(paths == 0 || before == 0, "{method} {mode} again: {}", text(&o));
                 }
             }
         }
     }
+}
+
+#[test]
+fn peers_pass_maps_on_with_the_token_and_a_corrupt_peer_loses_nothing() {
+    let dir = temp_dir("map-delivery", "peers");
+    let token = dir.join("token");
+    std::fs::write(&token, "farm-token\n").unwrap();
+    let token = token.to_str().unwrap();
+    let in_process = dir.join("in-process.exr");
+    assert!(render(&in_process, "photon-map", &[]).status.success());
+    let want = bits(&in_process);
+    // Three workers sharing a token: the maps reach each of them once. The coordinator uploads to one; then that
+    // one sends to a second while the coordinator uploads to the third (or, if a worker asks late, a holder
+    // sends to it).
+    let ws: Vec<WorkerProcess> =
+        (0..3).map(|_| WorkerProcess::start(&["--threads", "1", "--token-file", token])).collect();
+    let list = ws.iter().map(|w| w.addr.as_str()).collect::<Vec<_>>().join(",");
+    let out = dir.join("peers.exr");
+    let o = render(&out, "photon-map", &["--workers", &list, "--photon-maps", "peers", "--token-file", token]);
+    assert!(o.status.success() && bits(&out) == want, "{}", text(&o));
+    let rows: Vec<Row> = ws.iter().map(|w| row(&o, &w.addr)).collect();
+    assert!(rows.iter().all(|r| megabytes(&r.shipped) != megabytes(&r.fetched)), "{}", text(&o));
+    let fetched = rows.iter().filter(|r| megabytes(&r.fetched)).count();
+    assert!((1..=2).contains(&fetched), "{}", text(&o));
+    // Workers that serve corrupted bytes: every fetch fails its hash check, and the coordinator uploads the maps
+    // itself instead. The image is the same.
+    let ws: Vec<WorkerProcess> =
+        (0..2).map(|_| WorkerProcess::start(&["--threads", "1", "--test-corrupt-blobs"])).collect();
+    let list = format!("{},{}", ws[0].addr, ws[1].addr);
+    let out = dir.join("corrupt-peers.exr");
+    let o = render(&out, "photon-map", &["--workers", &list, "--photon-maps", "peers"]);
+    assert!(o.status.success() && bits(&out) == want, "{}", text(&o));
+    for w in &ws {
+        let r = row(&o, &w.addr);
+        assert!(megabytes(&r.shipped) && !megabytes(&r.fetched), "{}", text(&o));
+    }
+    assert!(!String::from_utf8_lossy(&o.stdout).contains("passed between workers"), "{}", text(&o));
+}
+
+#[test]
+fn a_worker_fetches_only_what_a_peer_holds_under_its_hash() {
+    use photon_proto::pb;
+    use photon_proto::pb::render_client::RenderClient;
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    let (holder, receiver) = (WorkerProcess::start(&["--threads", "1"]), WorkerProcess::start(&["--threads", "1"]));
+    let blob: Vec<u8> = (0..3 * photon_proto::MAX_CHUNK + 17).map(|i| (i * 7 % 251) as u8).collect();
+    let id = photon_proto::blob_id(&blob);
+    let header = pb::BlobHeader { id: id.clone(), size: blob.len() as u64 };
+    rt.block_on(async {
+        let mut h = RenderClient::connect(format!("http://{}", holder.addr)).await.unwrap();
+        let chunks = photon_proto::blob_chunks(header.clone(), std::sync::Arc::new(blob.clone()));
+        h.put_blob(tokio_stream::iter(chunks)).await.unwrap();
+        let mut r = RenderClient::connect(format!("http://{}", receiver.addr)).await.unwrap();
+        let fetch = |blob: pb::BlobHeader, peer: &str| pb::FetchBlobRequest {
+            blob: Some(blob),
+            peer: peer.to_owned(),
+            tls_ca: Vec::new(),
+        };
+        // Refusals, each with its code: a size that is not the blob's, a blob the peer lacks, no peer there, a
+        // bad id; the receiver still lacks the blob after them.
+        let wrong_size = pb::BlobHeader { size: header.size + 1, ..header.clone() };
+        let e = r.fetch_blob(fetch(wrong_size, &holder.addr)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::DataLoss, "{e:?}");
+        let unknown = pb::BlobHeader { id: photon_proto::blob_id(b"other"), size: 5 };
+        let e = r.fetch_blob(fetch(unknown, &holder.addr)).await.unwrap_err();
+        assert!(e.code() == tonic::Code::Unavailable && e.message().contains("not held"), "{e:?}");
+        let e = r.fetch_blob(fetch(header.clone(), "127.0.0.1:1")).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::Unavailable, "{e:?}");
+        let bad_id = pb::BlobHeader { id: "x".into(), size: 5 };
+        let e = r.fetch_blob(fetch(bad_id, &holder.addr)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument, "{e:?}");
+        let missing = |r: &mut RenderClient<tonic::transport::Channel>| {
+            let mut r = r.clone();
+            let ids = vec![id.clone()];
+            async move { r.missing_blobs(pb::MissingBlobsRequest { ids }).await.unwrap().into_inner().missing }
+        };
+        assert_eq!(missing(&mut r).await, vec![id.clone()]);
+        // The right request: the receiver stores the blob's bytes (its GetBlob serves them back, equal).
+        let stored = r.fetch_blob(fetch(header.clone(), &holder.addr)).await.unwrap().into_inner().stored;
+        assert_eq!(stored, blob.len() as u64);
+        assert!(missing(&mut r).await.is_empty());
+        let mut served = r.get_blob(pb::GetBlobRequest { id: id.clone() }).await.unwrap().into_inner();
+        let mut bytes = Vec::new();
+        while let Some(chunk) = served.message().await.unwrap() {
+            assert_eq!(chunk.header.is_some(), bytes.is_empty());
+            bytes.extend(chunk.data);
+        }
+        assert!(bytes == blob);
+    });
 }
 
 #[test]

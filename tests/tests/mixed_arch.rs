@@ -83,11 +83,11 @@ fn difference(a: &Path, b: &Path) -> (u64, f64) {
 fn strips_and_speculative(o: &Output, addr: &str) -> (u32, u32) {
     let stdout = String::from_utf8_lossy(&o.stdout);
     let row = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("no row for {addr}: {}", text(o)));
-    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), ship s, load s, photon paths,
-    // photon s, spec/dup, ...
+    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s,
+    // load s, photon paths, photon s, spec/dup, ...
     let words: Vec<&str> = row.split_whitespace().collect();
     let strips = words[4].parse().unwrap();
-    let spec = words[13].split('/').next().unwrap().parse().unwrap();
+    let spec = words[15].split('/').next().unwrap().parse().unwrap();
     (strips, spec)
 }
 

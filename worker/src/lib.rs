@@ -16,6 +16,8 @@
 //! strip that would not fit the worker's memory (`RESOURCE_EXHAUSTED`), blobs that do not decode
 //! (`INVALID_ARGUMENT`). A status echoes at most a short, escaped prefix of a received value
 //! ([`photon_proto::quote`]). A panic while rendering (a bug) fails that strip with `INTERNAL`, not the worker.
+//! A worker serves the blobs it holds to its peers (`GetBlob`) and, asked by the coordinator, fetches a blob
+//! from a peer (`FetchBlob`) with its own token, checking the size and hash like an upload's.
 //! One peer (a remote IP address) may have [`Config::max_calls_per_peer`] calls in progress over all its
 //! connections; beyond that a call is refused with `RESOURCE_EXHAUSTED`, naming the cap.
 #![forbid(unsafe_code)]
@@ -122,12 +124,17 @@ pub enum Fault {
     NanPixels,
     /// Panic while rendering the first `n` strips, as a bug would.
     Panic(u32),
+    /// Serve blobs to peers (`GetBlob`) with the first byte changed, as a bit flip would.
+    CorruptBlobs,
 }
 
 /// The decoded scene of one job.
 struct Job {
     key: [String; 3],
     prep: Prepared,
+    /// What making the job cost and no finished strip has reported yet: the strip that made it may be
+    /// cancelled (a tail copy that lost), and its cost then goes with the next strip of the job.
+    unreported: Mutex<Load>,
 }
 
 /// What making a job cost this worker: decoding its blobs, and tracing its photon maps when it traced them.
@@ -182,7 +189,8 @@ impl PeerCalls {
             let n = calls.entry(ip).or_insert(0);
             if *n >= self.cap {
                 return Err(Status::resource_exhausted(format!(
-                    "{ip} already has {} calls in progress here, the most one peer may have                      (photon-worker --max-calls-per-peer)",
+                    "{ip} already has {} calls in progress here, the most one peer may have \
+                     (photon-worker --max-calls-per-peer)",
                     self.cap
                 )));
             }
@@ -229,7 +237,7 @@ impl Worker {
         let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
         let corrupt = match config.fault {
             Fault::CorruptPixels(n) | Fault::Panic(n) => n,
-            Fault::None | Fault::Delay(_) | Fault::NanPixels => 0,
+            Fault::None | Fault::Delay(_) | Fault::NanPixels | Fault::CorruptBlobs => 0,
         };
         let upload_budget =
             usize::try_from(config.upload_budget_bytes).unwrap_or(usize::MAX).min(Semaphore::MAX_PERMITS);
@@ -393,6 +401,142 @@ impl Worker {
         Limits { strip_memory_bytes: self.config.strip_memory_bytes, threads: self.threads() }
     }
 
+    /// Checks a blob's announced id and size.
+    fn check_blob_header(&self, header: &pb::BlobHeader) -> Result<(), Status> {
+        if !photon_proto::is_blob_id(&header.id) {
+            return Err(Status::invalid_argument(format!(
+                "{} is not a blob id (64 lowercase hex digits)",
+                quote(&header.id)
+            )));
+        }
+        if header.size > self.config.max_blob_bytes {
+            return Err(Status::resource_exhausted(format!(
+                "blob {} of {} bytes exceeds this worker's limit of {} bytes (photon-worker --max-blob-mib)",
+                header.id, header.size, self.config.max_blob_bytes
+            )));
+        }
+        Ok(())
+    }
+
+    /// Receives a blob's stream (an upload, or a peer's answer to `GetBlob`) and stores it; returns the bytes
+    /// stored (0 when the blob was held already). The stream must announce `expected` when given. Every chunk is
+    /// reserved from the upload budget as it arrives and the whole blob must come within the idle time plus its
+    /// size over the minimum rate; the bytes must hash to the id.
+    async fn receive_blob(
+        &self,
+        stream: &mut Streaming<pb::BlobChunk>,
+        expected: Option<&pb::BlobHeader>,
+    ) -> Result<u64, Status> {
+        let idle = self.config.upload_idle;
+        let Some(first) = next_chunk(stream, Instant::now() + idle, idle).await? else {
+            return Err(Status::invalid_argument("empty upload: the first chunk must carry the blob's header"));
+        };
+        let Some(header) = first.header else {
+            return Err(Status::invalid_argument("the first chunk of an upload must carry the blob's header"));
+        };
+        self.check_blob_header(&header)?;
+        if let Some(asked) = expected
+            && *asked != header
+        {
+            return Err(Status::data_loss(format!(
+                "the peer sent blob {} of {} bytes, not the one asked for",
+                quote(&header.id),
+                header.size
+            )));
+        }
+        if self.blobs.contains(&header.id) {
+            return Ok(0);
+        }
+        // The whole upload must keep a minimum rate, so a client that sends a byte now and then (never idle
+        // long enough for the idle timeout) cannot keep its bytes reserved for ever.
+        let deadline = Instant::now()
+            + idle
+            + Duration::from_secs_f64(header.size as f64 / self.config.upload_min_rate.max(1) as f64);
+        let size = header.size as usize;
+        // Grow with what arrives rather than trusting the announced size with one allocation; every chunk's bytes
+        // are reserved from the upload budget as they arrive, and nothing is held while waiting for the network
+        // but the bytes already received.
+        let mut bytes: Vec<u8> = Vec::new();
+        let mut reserved: Option<tokio::sync::OwnedSemaphorePermit> = None;
+        let mut hasher = photon_proto::Hasher::new();
+        let mut chunk = first.data;
+        loop {
+            if chunk.len() > MAX_CHUNK {
+                return Err(Status::invalid_argument(format!(
+                    "a chunk of {} bytes; chunks are at most {MAX_CHUNK} bytes",
+                    chunk.len()
+                )));
+            }
+            if bytes.len() + chunk.len() > size {
+                return Err(Status::invalid_argument(format!(
+                    "blob {} announced {size} bytes and sent more",
+                    header.id
+                )));
+            }
+            self.reserve_upload(&mut reserved, chunk.len())?;
+            hasher.update(&chunk);
+            bytes.extend_from_slice(&chunk);
+            match next_chunk(stream, deadline, idle).await? {
+                Some(next) if next.header.is_some() => {
+                    return Err(Status::invalid_argument("only the first chunk of an upload carries a header"));
+                }
+                Some(next) => chunk = next.data,
+                None => break,
+            }
+        }
+        if bytes.len() != size {
+            return Err(Status::invalid_argument(format!(
+                "blob {} truncated: {} of the announced {size} bytes arrived",
+                header.id,
+                bytes.len()
+            )));
+        }
+        let hash = hasher.finalize().to_hex().to_string();
+        if hash != header.id {
+            return Err(Status::data_loss(format!("blob {} arrived with bytes that hash to {hash}", header.id)));
+        }
+        let stored = bytes.len() as u64;
+        self.blobs.insert(header.id, Arc::new(bytes));
+        Ok(stored)
+    }
+
+    /// Calls `GetBlob` for `id` on the peer at `peer` (`host:port` or a URI), with this worker's token, over TLS
+    /// trusting `tls_ca` when it is not empty.
+    async fn open_peer_blob(&self, peer: &str, tls_ca: &[u8], id: &str) -> Result<Streaming<pb::BlobChunk>, Status> {
+        const MAX_PEER_URI: usize = 512;
+        const MAX_CA_BYTES: usize = 64 << 10;
+        if peer.len() > MAX_PEER_URI || tls_ca.len() > MAX_CA_BYTES {
+            return Err(Status::invalid_argument(format!(
+                "a peer address of at most {MAX_PEER_URI} bytes and a CA certificate of at most {MAX_CA_BYTES} bytes"
+            )));
+        }
+        let uri = if peer.contains("://") { peer.to_owned() } else { format!("http://{peer}") };
+        let endpoint = if tls_ca.is_empty() {
+            photon_proto::transport::endpoint(&uri)
+        } else {
+            photon_proto::transport::tls_endpoint(&uri.replacen("http://", "https://", 1), tls_ca)
+        }
+        .map_err(|e| Status::invalid_argument(format!("bad peer address {}: {e}", quote(peer))))?;
+        let channel = endpoint
+            .connect()
+            .await
+            .map_err(|e| Status::unavailable(format!("cannot reach peer {}: {e}", quote(peer))))?;
+        let mut client = pb::render_client::RenderClient::new(channel)
+            .max_decoding_message_size(MAX_MESSAGE)
+            .max_encoding_message_size(MAX_MESSAGE);
+        let mut request = Request::new(pb::GetBlobRequest { id: id.to_owned() });
+        if let Some(token) = &self.config.token {
+            let value = tonic::metadata::MetadataValue::try_from(photon_proto::bearer(token))
+                .map_err(|_| Status::internal("this worker's token cannot travel in a header"))?;
+            request.metadata_mut().insert(photon_proto::TOKEN_KEY, value);
+        }
+        let answer = tokio::time::timeout(self.config.upload_idle, client.get_blob(request))
+            .await
+            .map_err(|_| Status::deadline_exceeded(format!("peer {} did not answer", quote(peer))))?
+            .map_err(|s| Status::unavailable(format!("peer {} refused: {}", quote(peer), s.message())))?;
+        Ok(answer.into_inner())
+    }
+
     /// Adds `n` bytes to an upload's reservation from the upload budget.
     fn reserve_upload(&self, reserved: &mut Option<tokio::sync::OwnedSemaphorePermit>, n: usize) -> Result<(), Status> {
         let Ok(n) = u32::try_from(n) else {
@@ -478,80 +622,49 @@ impl Render for Worker {
 
     async fn put_blob(&self, request: Request<Streaming<pb::BlobChunk>>) -> Result<Response<pb::PutBlobReply>, Status> {
         let _call = self.peers.admit(request.remote_addr())?;
-        let mut stream = request.into_inner();
-        let idle = self.config.upload_idle;
-        let Some(first) = next_chunk(&mut stream, Instant::now() + idle, idle).await? else {
-            return Err(Status::invalid_argument("empty upload: the first chunk must carry the blob's header"));
+        let stored = self.receive_blob(&mut request.into_inner(), None).await?;
+        Ok(Response::new(pb::PutBlobReply { stored }))
+    }
+
+    async fn fetch_blob(&self, request: Request<pb::FetchBlobRequest>) -> Result<Response<pb::PutBlobReply>, Status> {
+        let _call = self.peers.admit(request.remote_addr())?;
+        let r = request.into_inner();
+        let Some(blob) = r.blob else {
+            return Err(Status::invalid_argument("a fetch must name the blob: its id and size"));
         };
-        let Some(header) = first.header else {
-            return Err(Status::invalid_argument("the first chunk of an upload must carry the blob's header"));
-        };
-        if !photon_proto::is_blob_id(&header.id) {
-            return Err(Status::invalid_argument(format!(
-                "{} is not a blob id (64 lowercase hex digits)",
-                quote(&header.id)
-            )));
-        }
-        if header.size > self.config.max_blob_bytes {
-            return Err(Status::resource_exhausted(format!(
-                "blob {} of {} bytes exceeds this worker's limit of {} bytes (photon-worker --max-blob-mib)",
-                header.id, header.size, self.config.max_blob_bytes
-            )));
-        }
-        if self.blobs.contains(&header.id) {
+        self.check_blob_header(&blob)?;
+        if self.blobs.contains(&blob.id) {
             return Ok(Response::new(pb::PutBlobReply { stored: 0 }));
         }
-        // The whole upload must keep a minimum rate, so a client that sends a byte now and then (never idle
-        // long enough for the idle timeout) cannot keep its bytes reserved for ever.
-        let deadline = Instant::now()
-            + idle
-            + Duration::from_secs_f64(header.size as f64 / self.config.upload_min_rate.max(1) as f64);
-        let size = header.size as usize;
-        // Grow with what arrives rather than trusting the announced size with one allocation; every chunk's bytes
-        // are reserved from the upload budget as they arrive, and nothing is held while waiting for the network
-        // but the bytes already received.
-        let mut bytes: Vec<u8> = Vec::new();
-        let mut reserved: Option<tokio::sync::OwnedSemaphorePermit> = None;
-        let mut hasher = photon_proto::Hasher::new();
-        let mut chunk = first.data;
-        loop {
-            if chunk.len() > MAX_CHUNK {
-                return Err(Status::invalid_argument(format!(
-                    "a chunk of {} bytes; chunks are at most {MAX_CHUNK} bytes",
-                    chunk.len()
-                )));
-            }
-            if bytes.len() + chunk.len() > size {
-                return Err(Status::invalid_argument(format!(
-                    "blob {} announced {size} bytes and sent more",
-                    header.id
-                )));
-            }
-            self.reserve_upload(&mut reserved, chunk.len())?;
-            hasher.update(&chunk);
-            bytes.extend_from_slice(&chunk);
-            match next_chunk(&mut stream, deadline, idle).await? {
-                Some(next) if next.header.is_some() => {
-                    return Err(Status::invalid_argument("only the first chunk of an upload carries a header"));
-                }
-                Some(next) => chunk = next.data,
-                None => break,
-            }
-        }
-        if bytes.len() != size {
-            return Err(Status::invalid_argument(format!(
-                "blob {} truncated: {} of the announced {size} bytes arrived",
-                header.id,
-                bytes.len()
-            )));
-        }
-        let hash = hasher.finalize().to_hex().to_string();
-        if hash != header.id {
-            return Err(Status::data_loss(format!("blob {} arrived with bytes that hash to {hash}", header.id)));
-        }
-        let stored = bytes.len() as u64;
-        self.blobs.insert(header.id, Arc::new(bytes));
+        let mut stream = self.open_peer_blob(&r.peer, &r.tls_ca, &blob.id).await?;
+        let stored = self.receive_blob(&mut stream, Some(&blob)).await.map_err(|s| {
+            Status::new(s.code(), format!("fetching blob {} from {}: {}", blob.id, quote(&r.peer), s.message()))
+        })?;
         Ok(Response::new(pb::PutBlobReply { stored }))
+    }
+
+    type GetBlobStream = std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Result<pb::BlobChunk, Status>> + Send>>;
+
+    async fn get_blob(&self, request: Request<pb::GetBlobRequest>) -> Result<Response<Self::GetBlobStream>, Status> {
+        // Held until the last chunk is sent (or the caller goes away).
+        let call = self.peers.admit(request.remote_addr())?;
+        let id = request.into_inner().id;
+        if !photon_proto::is_blob_id(&id) {
+            return Err(Status::invalid_argument(format!("{} is not a blob id (64 lowercase hex digits)", quote(&id))));
+        }
+        let Some(blob) = self.blobs.get(&id) else {
+            return Err(Status::not_found(format!("blob {id} is not held here")));
+        };
+        let header = pb::BlobHeader { id, size: blob.len() as u64 };
+        let corrupt = self.config.fault == Fault::CorruptBlobs;
+        let chunks = photon_proto::blob_chunks(header, blob).enumerate().map(move |(i, mut chunk)| {
+            let _held = &call;
+            if corrupt && i == 0 && !chunk.data.is_empty() {
+                chunk.data[0] ^= 1;
+            }
+            Ok(chunk)
+        });
+        Ok(Response::new(Box::pin(tokio_stream::iter(chunks))))
     }
 
     type RenderStripStream = ReceiverStream<Result<pb::StripEvent, Status>>;
@@ -633,8 +746,8 @@ type Event_ = Result<pb::StripEvent, Status>;
 
 impl StripContext {
     /// The job of a request: from the cache, or decoded from its blobs (with its photon maps traced here when
-    /// the request says so), on this worker's threads; with what that cost (nothing for a cached job).
-    fn job(&self, r: &pb::StripRequest) -> Result<(Arc<Job>, Load), Status> {
+    /// the request says so), on this worker's threads; what that cost is kept in [`Job::unreported`].
+    fn job(&self, r: &pb::StripRequest) -> Result<Arc<Job>, Status> {
         // A traced map and a received one are the same bits, but keep the jobs apart all the same.
         let photons = if r.trace_photons { "traced".to_owned() } else { r.photons_blob.clone() };
         let key = [r.scene_blob.clone(), photons, photon_proto::blob_id(&r.frame)];
@@ -643,7 +756,7 @@ impl StripContext {
         if let Some(i) = jobs.iter().position(|j| j.key == key) {
             let job = jobs.remove(i);
             jobs.push(job.clone());
-            return Ok((job, Load::default()));
+            return Ok(job);
         }
         let t0 = Instant::now();
         let blob = |id: &str| {
@@ -674,12 +787,12 @@ impl StripContext {
                 prep.settings.integrator
             )));
         }
-        let job = Arc::new(Job { key, prep });
+        let job = Arc::new(Job { key, prep, unreported: Mutex::new(load) });
         jobs.push(job.clone());
         if jobs.len() > Worker::JOBS_KEPT {
             jobs.remove(0);
         }
-        Ok((job, load))
+        Ok(job)
     }
 
     /// [`StripContext::render`], with a panic (a bug: every request was checked before) turned into an
@@ -705,7 +818,7 @@ impl StripContext {
     /// Renders the strip, sending progress on `tx` as it goes; returns the pixel and summary events.
     fn render(&self, r: &pb::StripRequest, tx: &mpsc::Sender<Event_>) -> Result<Vec<Event_>, Status> {
         // The rows and passes were checked against this frame by `check_strip_request` before the call started.
-        let (job, load) = self.job(r)?;
+        let job = self.job(r)?;
         let width = job.prep.camera.width;
         tracing::info!(strip = r.strip, attempt = r.attempt, rows = ?(r.row_start..r.row_end), "rendering strip");
         if self.panic
@@ -762,6 +875,7 @@ impl StripContext {
             (photon_proto::pixels_to_bytes(&pixels), 4, summary)
         };
         summary.render_seconds = t0.elapsed().as_secs_f64();
+        let load = std::mem::take(&mut *job.unreported.lock().unwrap_or_else(std::sync::PoisonError::into_inner));
         summary.load_seconds = load.seconds;
         summary.photon_paths += load.photon_paths;
         summary.photon_seconds += load.photon_seconds;

@@ -67,6 +67,9 @@ struct Cli {
     /// Test only: wait MS milliseconds before each strip, like a much slower machine.
     #[arg(long, hide = true, value_name = "MS")]
     test_delay_ms: Option<u64>,
+    /// Test only: serve blobs to peers with a byte changed, as a bit flip in memory or on the wire would.
+    #[arg(long, hide = true)]
+    test_corrupt_blobs: bool,
 }
 
 fn main() {
@@ -133,6 +136,9 @@ fn run(cli: Cli) -> Result<()> {
     }
     if let Some(ms) = cli.test_delay_ms {
         config.fault = Fault::Delay(ms);
+    }
+    if cli.test_corrupt_blobs {
+        config.fault = Fault::CorruptBlobs;
     }
     let config_tls_off = config.tls.is_none();
     let worker = Worker::new(config)?;
