@@ -38,8 +38,11 @@ fn no_nan_inf_or_negative_pixel() {
             let img = render_image(&prep, &|_| {});
             let bad = img.pixels.iter().filter(|v| !v.is_finite() || **v < 0.0).count();
             assert_eq!(bad, 0, "{}: {integrator}: {bad} bad values", path.display());
-            // Direct light alone cannot see a light that shines only through glass.
-            if !(integrator == Integrator::Direct && path.ends_with("light-in-glass.toml")) {
+            // A point light inside a glass sphere reaches the room only through refraction: camera paths never
+            // find it (a delta light behind a delta surface), so direct lighting and the path tracer see black
+            // there; the photon methods see it (the stress suite's point).
+            let camera_only = matches!(integrator, Integrator::Direct | Integrator::Path);
+            if !(camera_only && path.ends_with("light-in-glass.toml")) {
                 assert!(img.pixels.iter().any(|&v| v > 0.0), "{}: {integrator}: black image", path.display());
             }
         }
