@@ -5,8 +5,8 @@
 //! passes are traced once in the whole farm, and its fixed-point sums are added exactly, in any order
 //! ([`PassAccumulator`]), so the image does not depend on the blocks, the workers or their speed.
 //!
-//! One task per worker opens a [`session`](crate::session) (connect, hello, ship the blobs it lacks); one task per
-//! strip in flight asks for it and checks what comes back. They report to a single loop that owns the [`Farm`]
+//! One task per worker opens a [`session`] (connect, hello, ship the blobs it lacks); one task per
+//! strip in flight asks for it and checks what comes back. They report to a single loop that owns the `Farm`
 //! state, with the [`Scheduler`] (a pure state machine) inside, through a channel, so every decision is made in
 //! one place, in the order events arrive. The loop also wakes on a timer to withdraw strips past their deadline.
 //! What the user should hear about during the render ([`Warning`]) is collected by the handlers and printed by

@@ -5,6 +5,56 @@
 //! It knows nothing of networks or async runtimes; everything a worker needs to render is one serialisable
 //! [`prepare::Prepared`] value.
 //!
+//! In the repository, `docs/SCENE.md` is the scene manual, `docs/ARCHITECTURE.md` the design, and
+//! `docs/RESULTS.md` every measured number with the command that reproduces it.
+//!
+//! ## Example
+//!
+//! A point light of intensity 1 W/sr one metre above a Lambert plane of albedo 0.5, seen from straight above
+//! through one pixel: the reflected radiance is `albedo / π · I / d²` (Pharr, Jakob & Humphreys, *Physically
+//! Based Rendering*, 4th ed., §4.5 and §9.2).
+//!
+//! ```
+//! use photon_core::prepare::Prepared;
+//! use photon_core::scene::Scene;
+//!
+//! let toml = r#"
+//! [camera]
+//! eye = [0.0, 2.0, 0.0]
+//! look_at = [0.0, 0.0, 0.0]
+//! up = [0.0, 0.0, -1.0]
+//! fov = 0.5
+//! width = 1
+//! height = 1
+//!
+//! [render]
+//! integrator = "direct"
+//! spp = 1
+//!
+//! [materials.grey]
+//! type = "lambert"
+//! albedo = 0.5
+//!
+//! [[objects]]
+//! type = "plane"
+//! point = [0.0, 0.0, 0.0]
+//! normal = [0.0, 1.0, 0.0]
+//! material = "grey"
+//!
+//! [[lights]]
+//! type = "point"
+//! position = [0.0, 1.0, 0.0]
+//! intensity = [1.0, 1.0, 1.0]
+//! "#;
+//! let path = std::path::Path::new("example.toml"); // names the scene in errors; nothing is read
+//! let scene = Scene::parse(toml, path)?;
+//! let prep = Prepared::new(&scene, path)?;
+//! let image = photon_core::render::render_image(&prep, &|_rows| {});
+//! let radiance = image.pixels[0]; // W sr⁻¹ m⁻², red channel
+//! assert!((radiance - 0.5 / std::f32::consts::PI).abs() < 1e-3 * radiance);
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! ## Vocabulary
 //! - `wo`, `wi`: unit directions that point *away* from the surface (towards the viewer, towards the light).
 //! - `n`: geometric normal; `ns`: shading normal. `p`: a point.

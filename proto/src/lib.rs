@@ -3,7 +3,26 @@
 //! `render.proto` (in this crate's folder) is the contract; [`pb`] is the code tonic and prost generate from it
 //! at build time (with protox, so no `protoc` is needed). Around it this crate keeps what both ends must agree
 //! on: the protocol version and the build id, blob ids, the strip checksum, the pixel encoding, the token
-//! header, and the transport settings, each in one place.
+//! header, and the transport settings, each in one place. The protocol's walk-through is the comment at the top
+//! of `render.proto`; the repository's `docs/ARCHITECTURE.md` places it in the design.
+//!
+//! ## Example
+//!
+//! Blobs are content-addressed: their id is the hash of their bytes, so a worker holding an id holds exactly
+//! those bytes, and a blob travels as chunks of at most [`MAX_CHUNK`] bytes, the first carrying the header.
+//!
+//! ```
+//! use std::sync::Arc;
+//!
+//! let scene = Arc::new(vec![7u8; 3 * photon_proto::MAX_CHUNK + 5]);
+//! let id = photon_proto::blob_id(&scene);
+//! assert!(photon_proto::is_blob_id(&id));
+//! let header = photon_proto::pb::BlobHeader { id, size: scene.len() as u64 };
+//! let chunks: Vec<_> = photon_proto::blob_chunks(header, scene.clone()).collect();
+//! assert_eq!(chunks.len(), 4);
+//! assert!(chunks[0].header.is_some() && chunks[1..].iter().all(|c| c.header.is_none()));
+//! assert_eq!(chunks.iter().map(|c| c.data.len()).sum::<usize>(), scene.len());
+//! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 

@@ -20,6 +20,28 @@
 //! from a peer (`FetchBlob`) with its own token, checking the size and hash like an upload's.
 //! One peer (a remote IP address) may have [`Config::max_calls_per_peer`] calls in progress over all its
 //! connections; beyond that a call is refused with `RESOURCE_EXHAUSTED`, naming the cap.
+//!
+//! The command-line options are in the repository's `README.md` (photon-worker `--help` lists them);
+//! `docs/ARCHITECTURE.md` places the worker in the design.
+//!
+//! ## Example
+//!
+//! A worker with one render thread, served on a loopback port until the shutdown future resolves (here at once):
+//!
+//! ```
+//! use photon_worker::{Config, Worker, serve};
+//!
+//! let worker = Worker::new(Config { threads: Some(1), ..Config::default() })?;
+//! assert_eq!(worker.threads(), 1);
+//! let rt = tokio::runtime::Runtime::new()?;
+//! rt.block_on(async {
+//!     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await?;
+//!     println!("serving on {}", listener.local_addr()?);
+//!     serve(worker, listener, async {}).await?;
+//!     Ok::<(), Box<dyn std::error::Error>>(())
+//! })?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 

@@ -185,7 +185,7 @@ impl Rect {
     }
 
     /// Distance along `ray` to the hit in `(0, tmax)`. A ray whose origin lies within the rounding error of the
-    /// rectangle's plane does not hit it (see [`plane_distance`]).
+    /// rectangle's plane does not hit it (see `plane_distance`).
     #[inline]
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
         let u = Vec3A::from(self.u);
@@ -418,7 +418,7 @@ impl Triangle {
 
 impl Plane {
     /// Distance along `ray` to the hit in `(0, tmax)`. A ray whose origin lies within the rounding error of the
-    /// plane does not hit it (see [`plane_distance`]).
+    /// plane does not hit it (see `plane_distance`).
     #[inline]
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
         let n = Vec3A::from(self.normal);

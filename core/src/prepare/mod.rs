@@ -79,7 +79,7 @@ impl Prepared {
     }
 }
 
-/// The smallest gather radius allowed, as a fraction of the scene's size ([`scene_size`]). Positions are
+/// The smallest gather radius allowed, as a fraction of the scene's size (`scene_size`). Positions are
 /// f32, good to about 6·10⁻⁸ of their magnitude, so a smaller disc holds no photon that is not a rounding
 /// accident, and its squared radius may underflow (1e-25² is 0 in f32), which turns `Φ / (π r²)` into NaN.
 pub const MIN_RELATIVE_PHOTON_RADIUS: f32 = 1e-6;

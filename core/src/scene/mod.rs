@@ -30,7 +30,7 @@
 //! Paths (meshes) resolve relative to the scene file's folder.
 //!
 //! The parts: the value types of the file ([`types`]), `--set` overrides applied before validation
-//! ([`overrides`]), validation of what the types cannot express (`validate`), and the line of a field in the
+//! (`overrides`), validation of what the types cannot express (`validate`), and the line of a field in the
 //! file for errors (`source`). A new object kind is a variant of [`Object`] with its checks in `validate`.
 
 mod overrides;
