@@ -137,7 +137,8 @@ async fn model_farm(
             (threads, delivery::LINK_BYTES_PER_S)
         }
     };
-    let shared_link = !matches!(spec, fleet::FleetSpec::Remote(_));
+    // Workers on this machine share its one link, whether started here or listed by a loopback address.
+    let shared_link = !matches!(spec, fleet::FleetSpec::Remote(_)) || fleet.addrs.iter().all(|a| a.is_loopback());
     delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }
 }
 

@@ -460,7 +460,7 @@ impl<'a> Farm<'a> {
         let m = &mut self.members[worker.0 as usize];
         tracing::info!(worker = %m.addr.name, threads = hello.threads, shipped, "rejoined");
         if self.sched.rejoin(worker, hello.threads) {
-            self.warnings.push(Warning::Rejoined { worker: m.addr.name.clone(), shipped });
+            self.warnings.push(Warning::Rejoined { worker: m.addr.name.clone(), shipped: shipped + fetched });
             m.shipped += shipped;
             m.fetched += fetched;
             (m.client, m.hello, m.out) = (Some(client), Some(hello), None);

@@ -24,6 +24,17 @@ pub struct WorkerAddr {
 }
 
 impl WorkerAddr {
+    /// Whether the worker is on this machine: its host is `localhost` or a loopback address.
+    pub fn is_loopback(&self) -> bool {
+        let rest = self.uri.split_once("://").map_or(self.uri.as_str(), |(_, r)| r);
+        let authority = rest.split('/').next().unwrap_or_default();
+        let host = match authority.strip_prefix('[') {
+            Some(v6) => v6.split(']').next().unwrap_or_default(),
+            None => authority.rsplit_once(':').map_or(authority, |(h, _)| h),
+        };
+        host == "localhost" || host.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
+    }
+
     /// A worker at `address` (`host:port`, or a URI with a scheme), named `name` or after its address.
     pub fn new(address: &str, name: Option<&str>) -> Self {
         let address = address.trim();
@@ -272,8 +283,8 @@ pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb:
     Ok((hello, delivered))
 }
 
-/// Gets blob `id` to the worker at `uri` from the first free source: a peer holding it (falling back to the
-/// next source when the fetch fails) or the coordinator.
+/// Gets blob `id` to the worker at `uri` from the first free source: a peer holding it or the coordinator. A
+/// fetch the peer failed (`ABORTED`) tries the next source; one the receiver failed gets the blob from here.
 async fn through_swarm(
     client: &mut Client,
     swarm: &crate::swarm::Swarm,
@@ -281,12 +292,13 @@ async fn through_swarm(
     blob: &Arc<Vec<u8>>,
     uri: &str,
 ) -> Result<Delivered, SessionError> {
-    use crate::swarm::Source;
+    use crate::swarm::{Outcome, Source};
+    let mut peers = true;
     loop {
-        let source = swarm.source(id, uri).await;
-        let Source::Peer(peer) = &source else {
+        let lease = swarm.lease(id, uri, peers).await;
+        let Source::Peer(peer) = lease.source().clone() else {
             let shipped = put_blob(client, id, blob.clone()).await;
-            swarm.done(id, &source, uri, shipped.is_ok());
+            lease.end(if shipped.is_ok() { Outcome::Delivered } else { Outcome::ReceiverFailed });
             return Ok(Delivered { shipped: shipped?, fetched: 0 });
         };
         let request = pb::FetchBlobRequest {
@@ -297,21 +309,24 @@ async fn through_swarm(
         let limit = ANSWER_TIMEOUT + Duration::from_secs(blob.len() as u64 >> 20);
         match tokio::time::timeout(limit, client.fetch_blob(request)).await {
             Ok(Ok(reply)) => {
-                swarm.done(id, &source, uri, true);
+                lease.end(Outcome::Delivered);
                 return Ok(Delivered { shipped: 0, fetched: reply.into_inner().stored });
             }
-            Ok(Err(status)) => {
-                tracing::info!(
-                    peer,
-                    receiver = uri,
-                    "fetch from a peer failed ({}); next source",
+            Ok(Err(status)) if status.code() == Code::Aborted => {
+                tracing::warn!(
+                    "{uri}: fetch from peer {peer} failed ({}); trying the next source",
                     status_line(&status)
                 );
-                swarm.done(id, &source, uri, false);
+                lease.end(Outcome::SourceFailed);
             }
-            Err(_) => {
-                tracing::info!(peer, receiver = uri, "fetch from a peer took over {} s; next source", limit.as_secs());
-                swarm.done(id, &source, uri, false);
+            answer => {
+                let why = match answer {
+                    Ok(Err(status)) => status_line(&status),
+                    _ => format!("no answer in {} s", limit.as_secs()),
+                };
+                tracing::warn!("{uri}: could not fetch from peer {peer} ({why}); uploading from here");
+                lease.end(Outcome::ReceiverFailed);
+                peers = false;
             }
         }
     }
@@ -595,6 +610,21 @@ fn sums_of(bytes: &[u8], block: u32, width: u32, row_start: u32) -> Result<Strip
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn loopback_workers_are_told_from_remote_ones() {
+        for (address, local) in [
+            ("127.0.0.1:7878", true),
+            ("localhost:7878", true),
+            ("http://[::1]:7878", true),
+            ("https://127.0.0.2:1", true),
+            ("node07:7878", false),
+            ("10.0.0.5:7878", false),
+            ("http://[2001:db8::1]:7878", false),
+        ] {
+            assert_eq!(WorkerAddr::new(address, None).is_loopback(), local, "{address}");
+        }
+    }
 
     #[test]
     fn strip_errors_keep_the_flags_of_their_kind() {

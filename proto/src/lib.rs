@@ -231,6 +231,10 @@ pub mod transport {
     /// connections then gains a peer nothing over [`CALLS_PER_CONNECTION`] each.
     pub const CALLS_PER_PEER: usize = 64;
 
+    /// Blobs a worker serves to peers at once (`GetBlob`); a farm passing blobs on asks each holder for one at a
+    /// time, so more is a misbehaving caller, refused with `RESOURCE_EXHAUSTED`.
+    pub const SERVED_AT_ONCE: usize = 4;
+
     /// A server builder with the same settings.
     pub fn server() -> tonic::transport::Server {
         tonic::transport::Server::builder()

@@ -14,10 +14,14 @@ const LIMIT: Duration = Duration::from_secs(240);
 const PATHS: u64 = 30_000;
 
 fn render(out: &Path, method: &str, extra: &[&str]) -> Output {
+    render_spp(out, method, 1, extra)
+}
+
+fn render_spp(out: &Path, method: &str, spp: u32, extra: &[&str]) -> Output {
     let mut cmd = Command::new(coordinator());
     cmd.arg("render").arg(scenes_dir().join("cornell.toml")).arg("-o").arg(out).arg("-q").arg("--no-cache");
-    cmd.args(["--size", "48x40", "--spp", "1", "--integrator", method, "--photons", &PATHS.to_string()]);
-    run_with_timeout(cmd.args(extra), LIMIT)
+    cmd.args(["--size", "48x40", "--spp", &spp.to_string(), "--integrator", method]);
+    run_with_timeout(cmd.args(["--photons", &PATHS.to_string()]).args(extra), LIMIT)
 }
 
 fn text(o: &Output) -> String {
@@ -136,8 +140,9 @@ fn peers_pass_maps_on_with_the_token_and_a_corrupt_peer_loses_nothing() {
     let token = dir.join("token");
     std::fs::write(&token, "farm-token\n").unwrap();
     let token = token.to_str().unwrap();
+    // 16 samples per pixel: the render outlasts the maps' passing on, so every worker is ready before the end.
     let in_process = dir.join("in-process.exr");
-    assert!(render(&in_process, "photon-map", &[]).status.success());
+    assert!(render_spp(&in_process, "photon-map", 16, &[]).status.success());
     let want = bits(&in_process);
     // Three workers sharing a token: the maps reach each of them once. The coordinator uploads to one; then that
     // one sends to a second while the coordinator uploads to the third (or, if a worker asks late, a holder
@@ -146,7 +151,7 @@ fn peers_pass_maps_on_with_the_token_and_a_corrupt_peer_loses_nothing() {
         (0..3).map(|_| WorkerProcess::start(&["--threads", "1", "--token-file", token])).collect();
     let list = ws.iter().map(|w| w.addr.as_str()).collect::<Vec<_>>().join(",");
     let out = dir.join("peers.exr");
-    let o = render(&out, "photon-map", &["--workers", &list, "--photon-maps", "peers", "--token-file", token]);
+    let o = render_spp(&out, "photon-map", 16, &["--workers", &list, "--photon-maps", "peers", "--token-file", token]);
     assert!(o.status.success() && bits(&out) == want, "{}", text(&o));
     let rows: Vec<Row> = ws.iter().map(|w| row(&o, &w.addr)).collect();
     assert!(rows.iter().all(|r| megabytes(&r.shipped) != megabytes(&r.fetched)), "{}", text(&o));
@@ -158,8 +163,11 @@ fn peers_pass_maps_on_with_the_token_and_a_corrupt_peer_loses_nothing() {
         (0..2).map(|_| WorkerProcess::start(&["--threads", "1", "--test-corrupt-blobs"])).collect();
     let list = format!("{},{}", ws[0].addr, ws[1].addr);
     let out = dir.join("corrupt-peers.exr");
-    let o = render(&out, "photon-map", &["--workers", &list, "--photon-maps", "peers"]);
+    let o = render_spp(&out, "photon-map", 16, &["--workers", &list, "--photon-maps", "peers"]);
     assert!(o.status.success() && bits(&out) == want, "{}", text(&o));
+    // The second worker tried its peer first: the peer is blamed (ABORTED) and the next source taken.
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("fetch from peer") && stderr.contains("trying the next source"), "{}", text(&o));
     for w in &ws {
         let r = row(&o, &w.addr);
         assert!(megabytes(&r.shipped) && !megabytes(&r.fetched), "{}", text(&o));
@@ -186,18 +194,21 @@ fn a_worker_fetches_only_what_a_peer_holds_under_its_hash() {
             peer: peer.to_owned(),
             tls_ca: Vec::new(),
         };
-        // Refusals, each with its code: a size that is not the blob's, a blob the peer lacks, no peer there, a
-        // bad id; the receiver still lacks the blob after them.
+        // Refusals, each with its code: the peer's fault is ABORTED (a size that is not the blob's, a blob the
+        // peer lacks, no peer there), the request's is INVALID_ARGUMENT (a bad id, not an http(s) peer); the
+        // receiver still lacks the blob after them.
         let wrong_size = pb::BlobHeader { size: header.size + 1, ..header.clone() };
         let e = r.fetch_blob(fetch(wrong_size, &holder.addr)).await.unwrap_err();
-        assert_eq!(e.code(), tonic::Code::DataLoss, "{e:?}");
+        assert!(e.code() == tonic::Code::Aborted && e.message().contains("not the one asked for"), "{e:?}");
         let unknown = pb::BlobHeader { id: photon_proto::blob_id(b"other"), size: 5 };
         let e = r.fetch_blob(fetch(unknown, &holder.addr)).await.unwrap_err();
-        assert!(e.code() == tonic::Code::Unavailable && e.message().contains("not held"), "{e:?}");
+        assert!(e.code() == tonic::Code::Aborted && e.message().contains("refused (NotFound)"), "{e:?}");
         let e = r.fetch_blob(fetch(header.clone(), "127.0.0.1:1")).await.unwrap_err();
-        assert_eq!(e.code(), tonic::Code::Unavailable, "{e:?}");
+        assert!(e.code() == tonic::Code::Aborted && e.message().contains("cannot reach"), "{e:?}");
         let bad_id = pb::BlobHeader { id: "x".into(), size: 5 };
         let e = r.fetch_blob(fetch(bad_id, &holder.addr)).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::InvalidArgument, "{e:?}");
+        let e = r.fetch_blob(fetch(header.clone(), "file:///etc/passwd")).await.unwrap_err();
         assert_eq!(e.code(), tonic::Code::InvalidArgument, "{e:?}");
         let missing = |r: &mut RenderClient<tonic::transport::Channel>| {
             let mut r = r.clone();
@@ -270,5 +281,51 @@ fn a_worker_refuses_maps_sent_both_ways_or_for_a_method_without_maps() {
         }
         let done = done.unwrap();
         assert_eq!(done.photon_paths, u64::from(prep.settings.photons.global), "{done:?}");
+    });
+}
+
+#[test]
+fn a_peer_that_stops_reading_frees_its_blob_and_slot_by_the_deadline() {
+    use photon_proto::pb;
+    use photon_proto::pb::render_client::RenderClient;
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    // Serving allowance: 1 s idle + 40 MiB at 20 MiB/s = 3 s.
+    let holder = WorkerProcess::start(&["--threads", "1", "--upload-idle-s", "1", "--upload-min-kib-s", "20480"]);
+    let blob: Vec<u8> = (0..40usize << 20).map(|i| (i % 253) as u8).collect();
+    let id = photon_proto::blob_id(&blob);
+    rt.block_on(async {
+        let mut h = RenderClient::connect(format!("http://{}", holder.addr)).await.unwrap();
+        let header = pb::BlobHeader { id: id.clone(), size: blob.len() as u64 };
+        h.put_blob(tokio_stream::iter(photon_proto::blob_chunks(header, std::sync::Arc::new(blob.clone()))))
+            .await
+            .unwrap();
+        // Four readers that read nothing take every serving slot; a fifth call is refused.
+        let mut stalled = Vec::new();
+        for _ in 0..photon_proto::transport::SERVED_AT_ONCE {
+            let mut c = RenderClient::connect(format!("http://{}", holder.addr)).await.unwrap();
+            stalled.push(c.get_blob(pb::GetBlobRequest { id: id.clone() }).await.unwrap().into_inner());
+        }
+        let e = h.get_blob(pb::GetBlobRequest { id: id.clone() }).await.unwrap_err();
+        assert_eq!(e.code(), tonic::Code::ResourceExhausted, "{e:?}");
+        // Past the allowance the stalled calls end with DEADLINE_EXCEEDED after what was in flight, and the
+        // slots are free: a reader that reads gets the whole blob.
+        tokio::time::sleep(std::time::Duration::from_secs(5)).await;
+        for mut s in stalled {
+            let mut got = 0;
+            let end = loop {
+                match s.message().await {
+                    Ok(Some(chunk)) => got += chunk.data.len(),
+                    Ok(None) => break None,
+                    Err(e) => break Some(e.code()),
+                }
+            };
+            assert!(end == Some(tonic::Code::DeadlineExceeded) && got < blob.len(), "{end:?} after {got} bytes");
+        }
+        let mut served = h.get_blob(pb::GetBlobRequest { id }).await.unwrap().into_inner();
+        let mut bytes = Vec::new();
+        while let Some(chunk) = served.message().await.unwrap() {
+            bytes.extend(chunk.data);
+        }
+        assert!(bytes == blob);
     });
 }

@@ -57,6 +57,7 @@ use photon_core::render::render_strip_with;
 use photon_core::scene::Integrator;
 use photon_proto::pb::render_server::{Render, RenderServer};
 use photon_proto::pb::{self, strip_event::Event};
+use photon_proto::transport::SERVED_AT_ONCE;
 use photon_proto::{MAX_CHUNK, MAX_MESSAGE, quote};
 use std::collections::HashMap;
 use std::future::Future;
@@ -181,6 +182,8 @@ pub struct Worker {
     render_slot: Arc<Semaphore>,
     /// Bytes that uploads in progress hold ([`Config::upload_budget_bytes`]).
     upload_bytes: Arc<Semaphore>,
+    /// Blobs served to peers at once ([`photon_proto::transport::SERVED_AT_ONCE`]).
+    serving: Arc<Semaphore>,
     waiting: Arc<AtomicUsize>,
     /// Strips left to corrupt ([`Fault::CorruptPixels`]) or to panic in ([`Fault::Panic`]).
     corrupt_left: Arc<AtomicU32>,
@@ -269,6 +272,7 @@ impl Worker {
             jobs: Arc::new(Mutex::new(Vec::new())),
             render_slot: Arc::new(Semaphore::new(1)),
             upload_bytes: Arc::new(Semaphore::new(upload_budget)),
+            serving: Arc::new(Semaphore::new(SERVED_AT_ONCE)),
             waiting: Arc::new(AtomicUsize::new(0)),
             corrupt_left: Arc::new(AtomicU32::new(corrupt)),
             peers: Arc::new(PeerCalls { cap: config.max_calls_per_peer.max(1), calls: Mutex::new(HashMap::new()) }),
@@ -335,7 +339,9 @@ async fn next_chunk(
     let now = Instant::now();
     let wait = idle.min(deadline.saturating_duration_since(now));
     match tokio::time::timeout(wait, stream.message()).await {
-        Ok(chunk) => chunk,
+        Ok(Ok(chunk)) => Ok(chunk),
+        // The sender's own words (a peer's, when fetching), quoted like every received value.
+        Ok(Err(s)) => Err(Status::new(s.code(), format!("the sender's stream failed: {}", quote(s.message())))),
         Err(_) if wait < idle => Err(Status::deadline_exceeded(
             "the upload is too slow: a blob must arrive within the idle time plus its size over the minimum rate \
              (photon-worker --upload-idle-s, --upload-min-kib-s)",
@@ -456,7 +462,6 @@ impl Worker {
         let Some(header) = first.header else {
             return Err(Status::invalid_argument("the first chunk of an upload must carry the blob's header"));
         };
-        self.check_blob_header(&header)?;
         if let Some(asked) = expected
             && *asked != header
         {
@@ -466,6 +471,7 @@ impl Worker {
                 header.size
             )));
         }
+        self.check_blob_header(&header)?;
         if self.blobs.contains(&header.id) {
             return Ok(0);
         }
@@ -533,16 +539,20 @@ impl Worker {
             )));
         }
         let uri = if peer.contains("://") { peer.to_owned() } else { format!("http://{peer}") };
+        if !(uri.starts_with("http://") || uri.starts_with("https://")) {
+            return Err(Status::invalid_argument(format!(
+                "a peer is `host:port` or an http(s) URI, not {}",
+                quote(peer)
+            )));
+        }
         let endpoint = if tls_ca.is_empty() {
             photon_proto::transport::endpoint(&uri)
         } else {
             photon_proto::transport::tls_endpoint(&uri.replacen("http://", "https://", 1), tls_ca)
         }
         .map_err(|e| Status::invalid_argument(format!("bad peer address {}: {e}", quote(peer))))?;
-        let channel = endpoint
-            .connect()
-            .await
-            .map_err(|e| Status::unavailable(format!("cannot reach peer {}: {e}", quote(peer))))?;
+        let channel =
+            endpoint.connect().await.map_err(|e| Status::aborted(format!("cannot reach peer {}: {e}", quote(peer))))?;
         let mut client = pb::render_client::RenderClient::new(channel)
             .max_decoding_message_size(MAX_MESSAGE)
             .max_encoding_message_size(MAX_MESSAGE);
@@ -554,8 +564,10 @@ impl Worker {
         }
         let answer = tokio::time::timeout(self.config.upload_idle, client.get_blob(request))
             .await
-            .map_err(|_| Status::deadline_exceeded(format!("peer {} did not answer", quote(peer))))?
-            .map_err(|s| Status::unavailable(format!("peer {} refused: {}", quote(peer), s.message())))?;
+            .map_err(|_| Status::aborted(format!("peer {} did not answer", quote(peer))))?
+            .map_err(|s| {
+                Status::aborted(format!("peer {} refused ({:?}): {}", quote(peer), s.code(), quote(s.message())))
+            })?;
         Ok(answer.into_inner())
     }
 
@@ -602,6 +614,11 @@ impl Render for Worker {
                 self.config.build_id,
                 photon_proto::CRATE_VERSION
             )));
+        }
+        // A new session: what making a job cost and no strip of an earlier session reported stays with that
+        // session (its report is complete without it), so the next strip does not report work it did not cause.
+        for job in self.jobs.lock().unwrap_or_else(std::sync::PoisonError::into_inner).iter() {
+            *job.unreported.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Load::default();
         }
         Ok(Response::new(pb::HelloReply {
             protocol_version: photon_proto::PROTOCOL_VERSION,
@@ -658,35 +675,62 @@ impl Render for Worker {
         if self.blobs.contains(&blob.id) {
             return Ok(Response::new(pb::PutBlobReply { stored: 0 }));
         }
+        if self.config.tls.is_some() && r.tls_ca.is_empty() {
+            return Err(Status::failed_precondition(
+                "this worker speaks TLS and fetches from peers over TLS only: the fetch must carry the farm's CA",
+            ));
+        }
         let mut stream = self.open_peer_blob(&r.peer, &r.tls_ca, &blob.id).await?;
         let stored = self.receive_blob(&mut stream, Some(&blob)).await.map_err(|s| {
-            Status::new(s.code(), format!("fetching blob {} from {}: {}", blob.id, quote(&r.peer), s.message()))
+            // Out of upload memory is this worker's state; anything else went wrong with the peer or its bytes.
+            let code = if s.code() == tonic::Code::ResourceExhausted { s.code() } else { tonic::Code::Aborted };
+            Status::new(code, format!("fetching blob {} from {}: {}", blob.id, quote(&r.peer), s.message()))
         })?;
         Ok(Response::new(pb::PutBlobReply { stored }))
     }
 
-    type GetBlobStream = std::pin::Pin<Box<dyn tokio_stream::Stream<Item = Result<pb::BlobChunk, Status>> + Send>>;
+    type GetBlobStream = ReceiverStream<Result<pb::BlobChunk, Status>>;
 
     async fn get_blob(&self, request: Request<pb::GetBlobRequest>) -> Result<Response<Self::GetBlobStream>, Status> {
-        // Held until the last chunk is sent (or the caller goes away).
         let call = self.peers.admit(request.remote_addr())?;
         let id = request.into_inner().id;
         if !photon_proto::is_blob_id(&id) {
             return Err(Status::invalid_argument(format!("{} is not a blob id (64 lowercase hex digits)", quote(&id))));
         }
+        let Ok(serving) = self.serving.clone().try_acquire_owned() else {
+            return Err(Status::resource_exhausted(format!(
+                "this worker already serves {SERVED_AT_ONCE} blobs to peers; try another source"
+            )));
+        };
         let Some(blob) = self.blobs.get(&id) else {
             return Err(Status::not_found(format!("blob {id} is not held here")));
         };
+        // A reader that stops reading must not hold the blob and the call for ever: the whole blob goes within
+        // the same allowance as an upload (idle time plus its size over the minimum rate), or the call ends.
+        let deadline = tokio::time::Instant::now()
+            + self.config.upload_idle
+            + Duration::from_secs_f64(blob.len() as f64 / self.config.upload_min_rate.max(1) as f64);
         let header = pb::BlobHeader { id, size: blob.len() as u64 };
         let corrupt = self.config.fault == Fault::CorruptBlobs;
-        let chunks = photon_proto::blob_chunks(header, blob).enumerate().map(move |(i, mut chunk)| {
-            let _held = &call;
-            if corrupt && i == 0 && !chunk.data.is_empty() {
-                chunk.data[0] ^= 1;
+        let (tx, rx) = mpsc::channel(3);
+        tokio::spawn(async move {
+            let _held = (call, serving);
+            for (i, mut chunk) in photon_proto::blob_chunks(header, blob).enumerate() {
+                if corrupt && i == 0 && !chunk.data.is_empty() {
+                    chunk.data[0] ^= 1;
+                }
+                // A chunk goes only when two places are free, so one is always left for the error.
+                let Ok(Ok(mut places)) = tokio::time::timeout_at(deadline, tx.reserve_many(2)).await else {
+                    let late = Status::deadline_exceeded("the blob was not read within its allowance");
+                    let _ = tx.try_send(Err(late));
+                    return;
+                };
+                if let Some(place) = places.next() {
+                    place.send(Ok(chunk));
+                }
             }
-            Ok(chunk)
         });
-        Ok(Response::new(Box::pin(tokio_stream::iter(chunks))))
+        Ok(Response::new(ReceiverStream::new(rx)))
     }
 
     type RenderStripStream = ReceiverStream<Result<pb::StripEvent, Status>>;
