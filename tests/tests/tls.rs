@@ -119,3 +119,28 @@ fn workers_pass_photon_maps_to_each_other_over_tls() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(std::fs::read(dir.join("peers.exr")).unwrap(), std::fs::read(dir.join("here.exr")).unwrap());
 }
+
+#[test]
+fn a_tls_worker_fetches_from_peers_over_tls_only() {
+    use photon_proto::pb;
+    let dir = temp_dir("tls", "downgrade");
+    certs(&dir, &["127.0.0.1"]);
+    let s = |p: &Path| p.to_str().unwrap().to_owned();
+    let w = WorkerProcess::start(&[
+        "--tls-cert",
+        &s(&dir.join("127.0.0.1.pem")),
+        "--tls-key",
+        &s(&dir.join("127.0.0.1.key")),
+    ]);
+    let ca = std::fs::read(dir.join("ca.pem")).unwrap();
+    let rt = tokio::runtime::Runtime::new().unwrap();
+    rt.block_on(async {
+        let endpoint = photon_proto::transport::tls_endpoint(&format!("https://{}", w.addr), &ca).unwrap();
+        let mut c = pb::render_client::RenderClient::new(endpoint.connect().await.unwrap());
+        // Asked to fetch without the farm's CA (in plaintext, which would send its token in the clear), it refuses.
+        let blob = pb::BlobHeader { id: photon_proto::blob_id(b"x"), size: 1 };
+        let plaintext = pb::FetchBlobRequest { blob: Some(blob), peer: "127.0.0.1:1".into(), tls_ca: Vec::new() };
+        let e = c.fetch_blob(plaintext).await.unwrap_err();
+        assert!(e.code() == tonic::Code::FailedPrecondition && e.message().contains("over TLS only"), "{e:?}");
+    });
+}
