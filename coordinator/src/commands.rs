@@ -348,7 +348,7 @@ fn sweep(args: SweepArgs) -> Result<()> {
     println!("\nequal time (relMSE, log-log interpolation):\n{}", sweep::equal_time_table(&curves));
     println!("equal error (seconds, log-log interpolation; — out of the measured range):");
     println!("{}", sweep::equal_error_table(&curves));
-    println!("wrote {}, {} and {} (the PNG has no text)", csv_path.display(), svg.display(), png.display());
+    println!("wrote {}, {} and {}", csv_path.display(), svg.display(), png.display());
     Ok(())
 }
 

@@ -326,27 +326,50 @@ pub fn equal_error_table(curves: &[Curve]) -> String {
     table(curves, "method", &columns, |c, i| time_to(c, levels[i]).map_or_else(|| "—".into(), sig))
 }
 
-/// Draws relMSE against seconds on log-log axes, one line per method, to `svg` and `png`. The SVG has a title,
-/// axis labels, tick labels and a legend. The PNG has the same axes, grid and lines but no text: plotters
-/// rasterises text only through a font backend, which needs a font file or the system's fonts, and this build
-/// uses neither.
+/// Draws relMSE against seconds on log-log axes, one line per method, to `svg` and `png`, each with a title, axis
+/// labels, tick labels and a legend. The PNG's text is rasterised with DejaVu Sans, built into the binary
+/// (`coordinator/assets/`, its licence beside it), so no system font is needed.
 pub fn draw_charts(curves: &[Curve], title: &str, svg: &Path, png: &Path) -> Result<()> {
     use plotters::prelude::*;
-    let (w, h) = (800u32, 560u32);
+    let (w, h) = CHART_SIZE;
     {
         let root = SVGBackend::new(svg, (w, h)).into_drawing_area();
         draw(&root, curves, Some(title)).with_context(|| format!("drawing {}", svg.display()))?;
         root.present().with_context(|| format!("writing {}", svg.display()))?;
     }
-    let mut buf = vec![0u8; 3 * w as usize * h as usize];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        draw(&root, curves, None).with_context(|| format!("drawing {}", png.display()))?;
-        root.present().with_context(|| format!("drawing {}", png.display()))?;
-    }
+    let buf = chart_pixels(curves, Some(title)).with_context(|| format!("drawing {}", png.display()))?;
     image::save_buffer(png, &buf, w, h, image::ExtendedColorType::Rgb8)
         .with_context(|| format!("writing {}", png.display()))?;
     Ok(())
+}
+
+/// Width and height of a chart in pixels.
+const CHART_SIZE: (u32, u32) = (800, 560);
+
+/// The chart as RGB8 pixels (row-major, `CHART_SIZE`), with its text when `title` is given.
+fn chart_pixels(curves: &[Curve], title: Option<&str>) -> Result<Vec<u8>> {
+    use plotters::prelude::*;
+    register_font();
+    let (w, h) = CHART_SIZE;
+    let mut buf = vec![0u8; 3 * w as usize * h as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        draw(&root, curves, title)?;
+        root.present()?;
+    }
+    Ok(buf)
+}
+
+/// Registers the built-in font as plotters' `sans-serif`, once.
+fn register_font() {
+    static FONT: std::sync::Once = std::sync::Once::new();
+    FONT.call_once(|| {
+        // DejaVu Sans (Bitstream Vera licence: coordinator/assets/DejaVuSans-LICENSE.txt).
+        let bytes: &'static [u8] = include_bytes!("../assets/DejaVuSans.ttf");
+        if plotters::style::register_font("sans-serif", plotters::style::FontStyle::Normal, bytes).is_err() {
+            tracing::warn!("the built-in chart font does not load: PNG charts will lack their text");
+        }
+    });
 }
 
 /// The line colour of the `i`-th method (a colour-blind-safe palette, Wong 2011).
@@ -397,6 +420,7 @@ where
     root.fill(&WHITE)?;
     let xr = decade_range(curves.iter().flat_map(|c| c.points.iter().map(|p| p.0)));
     let yr = decade_range(curves.iter().flat_map(|c| c.points.iter().map(|p| p.1)));
+    register_font();
     let labels = title.is_some();
     let mut builder = ChartBuilder::on(root);
     builder.margin(20);
@@ -447,6 +471,26 @@ where
 mod tests {
     use super::*;
     use photon_core::scene::RenderSettings;
+
+    #[test]
+    fn png_charts_carry_their_text() {
+        let curves = [curve(&[(0.5, 0.2), (2.0, 0.05), (8.0, 0.01)])];
+        let with = chart_pixels(&curves, Some("Cornell box: relMSE against time")).unwrap();
+        let without = chart_pixels(&curves, None).unwrap();
+        // Dark pixels (the text is black) in the title band above the plot and in the axis-label band below it,
+        // away from the frame's sides: the same chart drawn without its text has none there (its grid is grey,
+        // its line blue, its frame on the band's edges).
+        let (w, h) = (CHART_SIZE.0 as usize, CHART_SIZE.1 as usize);
+        let dark = |buf: &[u8], rows: std::ops::Range<usize>| {
+            rows.flat_map(|y| (200..600).map(move |x| 3 * (y * w + x)))
+                .filter(|&i| buf[i..i + 3].iter().all(|&c| c < 100))
+                .count()
+        };
+        for band in [22..45, h - 45..h - 22] {
+            assert_eq!(dark(&without, band.clone()), 0, "{band:?}");
+            assert!(dark(&with, band.clone()) > 100, "{band:?}: {} dark pixels", dark(&with, band.clone()));
+        }
+    }
 
     fn curve(points: &[(f64, f64)]) -> Curve {
         Curve { method: Integrator::Path, points: points.to_vec() }
