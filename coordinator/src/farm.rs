@@ -30,7 +30,9 @@ use crate::report::{Warning, WorkerReport, progress_bar};
 use crate::scheduler::{
     Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
 };
-use crate::session::{self, Client, Ready, SessionError, StripData, StripError, StripResult, WorkerAddr, fetch_strip};
+use crate::session::{
+    self, Client, Delivered, Ready, SessionError, StripData, StripError, StripResult, WorkerAddr, fetch_strip,
+};
 use photon_core::render::progressive::PassAccumulator;
 use photon_proto::pb;
 use std::collections::BTreeMap;
@@ -215,9 +217,8 @@ struct Member {
     addr: WorkerAddr,
     client: Option<Client>,
     hello: Option<pb::HelloReply>,
-    shipped: u64,
-    /// Blob bytes it fetched from other workers.
-    fetched: u64,
+    /// Blob bytes it received, from the coordinator and from other workers.
+    received: Delivered,
     ship_s: f64,
     /// Why it is out, if it is (refused, lost, dropped).
     out: Option<String>,
@@ -297,8 +298,7 @@ impl<'a> Farm<'a> {
                 addr: a.clone(),
                 client: None,
                 hello: None,
-                shipped: 0,
-                fetched: 0,
+                received: Delivered::default(),
                 ship_s: 0.0,
                 out: None,
                 rows_live: 0,
@@ -432,7 +432,7 @@ impl<'a> Farm<'a> {
         }
         self.unresolved -= 1;
         self.first_ready.get_or_insert_with(Instant::now);
-        let Ready { client, hello, shipped, fetched, ship_s } = ready;
+        let Ready { client, hello, delivered, ship_s } = ready;
         let other_mode = self.members.iter().find_map(|o| {
             o.hello.as_ref().filter(|h| h.math_mode != hello.math_mode).map(|h| (&o.addr.name, &h.math_mode))
         });
@@ -448,21 +448,21 @@ impl<'a> Farm<'a> {
         let m = &mut self.members[worker.0 as usize];
         tracing::info!(
             worker = %m.addr.name, arch = %hello.arch, math = %hello.math_mode, threads = hello.threads,
-            shipped, fetched, ship_s, "ready"
+            shipped = delivered.shipped, fetched = delivered.fetched, ship_s, "ready"
         );
         self.sched.add_worker(worker, hello.threads);
-        (m.client, m.hello, m.shipped, m.fetched, m.ship_s) = (Some(client), Some(hello), shipped, fetched, ship_s);
+        (m.client, m.hello, m.received, m.ship_s) = (Some(client), Some(hello), delivered, ship_s);
     }
 
     /// A lost worker that answered again, with the same build: it takes strips again.
     fn on_rejoined(&mut self, worker: WorkerId, ready: Ready) {
-        let Ready { client, hello, shipped, fetched, .. } = ready;
+        let Ready { client, hello, delivered, .. } = ready;
         let m = &mut self.members[worker.0 as usize];
-        tracing::info!(worker = %m.addr.name, threads = hello.threads, shipped, "rejoined");
+        tracing::info!(worker = %m.addr.name, threads = hello.threads, ?delivered, "rejoined");
         if self.sched.rejoin(worker, hello.threads) {
-            self.warnings.push(Warning::Rejoined { worker: m.addr.name.clone(), shipped: shipped + fetched });
-            m.shipped += shipped;
-            m.fetched += fetched;
+            let shipped = delivered.shipped + delivered.fetched;
+            self.warnings.push(Warning::Rejoined { worker: m.addr.name.clone(), shipped });
+            m.received += delivered;
             (m.client, m.hello, m.out) = (Some(client), Some(hello), None);
         }
     }
@@ -510,26 +510,18 @@ impl<'a> Farm<'a> {
         // Maps a worker traced for itself count whichever copy of a strip reports them (the worker traced them
         // once, for the job); a pass block's photons count only when the block is accepted, so that their total
         // is the job's.
-        let traced_maps = self.job.trace_photons;
+        let completion = self.sched.complete(worker, strip, attempt, now);
+        let accepted = matches!(completion, Completion::Accepted { .. });
         let m = &mut self.members[worker.0 as usize];
         m.load_s += summary.load_seconds;
-        if traced_maps {
+        if self.job.trace_photons || accepted {
             m.photon_paths += summary.photon_paths;
             m.photon_s += summary.photon_seconds;
             self.photon_paths += summary.photon_paths;
         }
-        match self.sched.complete(worker, strip, attempt, now) {
-            Completion::Accepted { cancel } => {
-                let m = &mut self.members[worker.0 as usize];
-                tracing::info!(worker = %m.addr.name, %strip, "accepted");
-                if !traced_maps {
-                    m.photon_paths += summary.photon_paths;
-                    m.photon_s += summary.photon_seconds;
-                    self.photon_paths += summary.photon_paths;
-                }
-                self.accept(strip, data, summary.rays, cancel);
-            }
-            Completion::Duplicate | Completion::Unknown => {}
+        if let Completion::Accepted { cancel } = completion {
+            tracing::info!(worker = %m.addr.name, %strip, "accepted");
+            self.accept(strip, data, summary.rays, cancel);
         }
     }
 
@@ -757,8 +749,8 @@ impl<'a> Farm<'a> {
                     strips,
                     busy_s,
                     mpix_per_s: if busy_s > 0.0 { rows as f64 * f64::from(width) / 1e6 / busy_s } else { 0.0 },
-                    shipped_bytes: m.shipped,
-                    fetched_bytes: m.fetched,
+                    shipped_bytes: m.received.shipped,
+                    fetched_bytes: m.received.fetched,
                     ship_s: m.ship_s,
                     speculative,
                     duplicates,

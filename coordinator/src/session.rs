@@ -26,19 +26,15 @@ pub struct WorkerAddr {
 impl WorkerAddr {
     /// Whether the worker is on this machine: its host is `localhost` or a loopback address.
     pub fn is_loopback(&self) -> bool {
-        let rest = self.uri.split_once("://").map_or(self.uri.as_str(), |(_, r)| r);
-        let authority = rest.split('/').next().unwrap_or_default();
-        let host = match authority.strip_prefix('[') {
-            Some(v6) => v6.split(']').next().unwrap_or_default(),
-            None => authority.rsplit_once(':').map_or(authority, |(h, _)| h),
-        };
+        let Ok(uri) = self.uri.parse::<tonic::codegen::http::Uri>() else { return false };
+        let host = uri.host().unwrap_or_default().trim_start_matches('[').trim_end_matches(']');
         host == "localhost" || host.parse::<std::net::IpAddr>().is_ok_and(|ip| ip.is_loopback())
     }
 
     /// A worker at `address` (`host:port`, or a URI with a scheme), named `name` or after its address.
     pub fn new(address: &str, name: Option<&str>) -> Self {
         let address = address.trim();
-        let uri = if address.contains("://") { address.to_owned() } else { format!("http://{address}") };
+        let uri = photon_proto::transport::worker_uri(address, false);
         Self { name: name.map_or_else(|| address.to_owned(), str::to_owned), uri }
     }
 }
@@ -144,12 +140,9 @@ pub async fn connect(
         Some(t) => Some(MetadataValue::try_from(photon_proto::bearer(t)).map_err(|_| SessionError::BadToken)?),
         None => None,
     };
-    let uri = if tls_ca.is_some() { uri.replacen("http://", "https://", 1) } else { uri.to_owned() };
-    let endpoint = match tls_ca {
-        Some(ca) => photon_proto::transport::tls_endpoint(&uri, ca),
-        None => photon_proto::transport::endpoint(&uri),
-    }
-    .map_err(|cause| SessionError::BadAddress { uri: uri.clone(), cause })?;
+    let uri = photon_proto::transport::worker_uri(uri, tls_ca.is_some());
+    let endpoint = photon_proto::transport::client_endpoint(&uri, tls_ca)
+        .map_err(|cause| SessionError::BadAddress { uri: uri.clone(), cause })?;
     let start = Instant::now();
     let channel = loop {
         match endpoint.connect().await {
@@ -203,10 +196,8 @@ pub struct Ready {
     pub client: Client,
     /// Its hello.
     pub hello: pb::HelloReply,
-    /// Blob bytes shipped to it from the coordinator.
-    pub shipped: u64,
-    /// Blob bytes it fetched from other workers ([`crate::swarm`]).
-    pub fetched: u64,
+    /// Blob bytes it received, from the coordinator and from other workers ([`crate::swarm`]).
+    pub delivered: Delivered,
     /// Seconds from the start of the session until it was ready.
     pub ship_s: f64,
 }
@@ -232,8 +223,7 @@ pub async fn open_with_patience(
     let started = Instant::now();
     let mut client = connect(&addr.uri, token, tls_ca, patience).await?;
     let (hello, delivered) = introduce(&mut client, job, &addr.uri).await?;
-    let (shipped, fetched) = (delivered.shipped, delivered.fetched);
-    Ok(Ready { client, hello, shipped, fetched, ship_s: started.elapsed().as_secs_f64() })
+    Ok(Ready { client, hello, delivered, ship_s: started.elapsed().as_secs_f64() })
 }
 
 /// Whether a hello that failed with `code` got no answer from a worker (the connection died: a worker going
@@ -249,6 +239,13 @@ pub struct Delivered {
     pub shipped: u64,
     /// From other workers.
     pub fetched: u64,
+}
+
+impl std::ops::AddAssign for Delivered {
+    fn add_assign(&mut self, other: Self) {
+        self.shipped += other.shipped;
+        self.fetched += other.fetched;
+    }
 }
 
 /// Says hello and gets the worker the blobs it lacks: uploaded from here, or, for the big blobs of a job with a
@@ -273,9 +270,7 @@ pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb:
         }
         match &job.swarm {
             Some(swarm) if blob.len() >= crate::swarm::MIN_PEER_BYTES => {
-                let got = through_swarm(client, swarm, &id, blob, uri).await?;
-                delivered.shipped += got.shipped;
-                delivered.fetched += got.fetched;
+                delivered += through_swarm(client, swarm, &id, blob, uri).await?;
             }
             _ => delivered.shipped += put_blob(client, &id, blob.clone()).await?,
         }

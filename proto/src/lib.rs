@@ -210,6 +210,25 @@ pub mod transport {
         endpoint(uri)?.tls_config(tls)
     }
 
+    /// The URI of a worker at `address` (`host:port`, or a URI with a scheme): `http://` unless the address names
+    /// a scheme, and `https://` in place of `http://` when `tls`.
+    pub fn worker_uri(address: &str, tls: bool) -> String {
+        let uri = if address.contains("://") { address.to_owned() } else { format!("http://{address}") };
+        if tls { uri.replacen("http://", "https://", 1) } else { uri }
+    }
+
+    /// A client endpoint for the worker at `uri` ([`worker_uri`]), speaking TLS and trusting only the authority
+    /// in `tls_ca` when one is given.
+    pub fn client_endpoint(
+        uri: &str,
+        tls_ca: Option<&[u8]>,
+    ) -> Result<tonic::transport::Endpoint, tonic::transport::Error> {
+        match tls_ca {
+            Some(ca) => tls_endpoint(uri, ca),
+            None => endpoint(uri),
+        }
+    }
+
     /// A server builder that speaks TLS with the certificate chain and key in `cert_pem` and `key_pem`.
     pub fn tls_server(cert_pem: &[u8], key_pem: &[u8]) -> Result<tonic::transport::Server, tonic::transport::Error> {
         let identity = tonic::transport::Identity::from_pem(cert_pem, key_pem);

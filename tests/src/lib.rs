@@ -275,3 +275,43 @@ impl Running {
         std::process::Output { status, stdout, stderr }
     }
 }
+
+/// A worker's row of the coordinator's end table (printed after a render on workers): worker, platform (2
+/// words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s, load s, photon paths,
+/// photon s, spec/dup, failures, then the state (the rest of the line). One parser, so a new column moves every
+/// test's reading at once.
+#[derive(Clone, Debug)]
+pub struct WorkerRow {
+    /// The whole line.
+    pub line: String,
+    /// Strips or pass blocks accepted from it.
+    pub units: u64,
+    /// Blob bytes shipped to it from the coordinator, as printed (`1.7 MiB`).
+    pub shipped: String,
+    /// Blob bytes it fetched from peers, as printed.
+    pub from_peers: String,
+    /// Photon paths it traced.
+    pub photon_paths: u64,
+    /// Speculative copies it was given.
+    pub speculative: u32,
+    /// Its state column (`ok`, `stalled`, `lost: …`).
+    pub state: String,
+}
+
+impl WorkerRow {
+    /// The row of the worker at `addr` in a coordinator's standard output, or `None` when it has none or it does
+    /// not have the table's columns.
+    pub fn find(stdout: &str, addr: &str) -> Option<Self> {
+        let line = stdout.lines().find(|l| l.starts_with(addr))?;
+        let w: Vec<&str> = line.split_whitespace().collect();
+        Some(Self {
+            line: line.to_owned(),
+            units: w.get(4)?.parse().ok()?,
+            shipped: format!("{} {}", w.get(7)?, w.get(8)?),
+            from_peers: format!("{} {}", w.get(9)?, w.get(10)?),
+            photon_paths: w.get(13)?.parse().ok()?,
+            speculative: w.get(15)?.split('/').next()?.parse().ok()?,
+            state: w.get(17..)?.join(" "),
+        })
+    }
+}

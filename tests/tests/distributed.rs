@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
-use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use photon_tests::{WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -237,11 +237,7 @@ fn a_slow_worker_takes_fewer_strips_and_the_tail_does_not_wait_for_it() {
     let o = render(&out, QUICK, &["--workers", &workers_arg(&[&fast, &slow]), "--rows-per-strip", "2"]);
     assert!(o.status.success(), "{}", text(&o));
     let stdout = String::from_utf8_lossy(&o.stdout);
-    let strips = |addr: &str| -> u32 {
-        let row = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("{}", text(&o)));
-        // worker, platform (2 words), threads, strips
-        row.split_whitespace().nth(4).unwrap().parse().unwrap()
-    };
+    let strips = |addr: &str| WorkerRow::find(&stdout, addr).unwrap_or_else(|| panic!("{}", text(&o))).units;
     let (f, s) = (strips(&fast.addr), strips(&slow.addr));
     assert_eq!(f + s, 24, "every strip accepted once: {}", text(&o));
     assert!(f >= 4 * s, "the fast worker should take most strips ({f} against {s}): {}", text(&o));

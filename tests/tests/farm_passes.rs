@@ -4,7 +4,7 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
-use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use photon_tests::{WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir};
 use std::path::Path;
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -55,12 +55,8 @@ fn paths_in_summary(o: &Output) -> u64 {
 
 /// A worker's row of the end table: (units accepted, photon paths).
 fn row(o: &Output, addr: &str) -> (u64, u64) {
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let line = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("{}", text(o)));
-    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s,
-    // load s, photon paths
-    let words: Vec<&str> = line.split_whitespace().collect();
-    (words[4].parse().unwrap(), words[13].parse().unwrap())
+    let row = WorkerRow::find(&String::from_utf8_lossy(&o.stdout), addr).unwrap_or_else(|| panic!("{}", text(o)));
+    (row.units, row.photon_paths)
 }
 
 fn workers_arg(ws: &[&WorkerProcess]) -> String {

@@ -9,7 +9,7 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
-use photon_tests::{Running, WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use photon_tests::{Running, WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir};
 use std::path::Path;
 use std::process::{Command, Output};
 use std::sync::OnceLock;
@@ -66,9 +66,9 @@ fn resumed(o: &Output, units: &str) -> u32 {
 }
 
 /// A worker's row of the end table.
-fn row(o: &Output, addr: &str) -> String {
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("no row for {addr}: {}", text(o))).to_owned()
+fn row(o: &Output, addr: &str) -> WorkerRow {
+    WorkerRow::find(&String::from_utf8_lossy(&o.stdout), addr)
+        .unwrap_or_else(|| panic!("no row for {addr}: {}", text(o)))
 }
 
 /// Interrupts a render of `job` on one slow worker with `signal` after `accepted` units were accepted, checks
@@ -159,10 +159,8 @@ fn a_worker_restarted_on_its_port_rejoins_and_takes_strips_again() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains(&format!("worker {addr} rejoined")), "{}", text(&o));
     assert!(!stderr.contains("rejoined (0 B shipped again)"), "{}", text(&o));
-    let line = row(&o, &addr);
-    let words: Vec<&str> = line.split_whitespace().collect();
-    assert!(words[4].parse::<u32>().unwrap() > 0, "{line}");
-    assert!(line.ends_with("ok (rejoined once)"), "{}", text(&o));
+    let row = row(&o, &addr);
+    assert!(row.units > 0 && row.state == "ok (rejoined once)", "{}", row.line);
 }
 
 #[cfg(unix)]
@@ -184,9 +182,7 @@ fn a_frozen_worker_is_reported_stalled_not_ok() {
     let o = render.finish(LIMIT);
     assert!(o.status.success(), "{}", text(&o));
     assert!(bits(&out) == want, "the image changed with a frozen worker");
-    let line = row(&o, &frozen.addr);
-    // Frozen for less than the keep-alive's 30 s, so not lost: stalled, in the state column (the 18th word).
-    assert!(line.ends_with("stalled"), "{}", text(&o));
-    assert_eq!(line.split_whitespace().count(), 18, "{line}");
-    assert!(row(&o, &steady.addr).ends_with("ok"), "{}", text(&o));
+    // Frozen for less than the keep-alive's 30 s, so not lost: stalled, in the state column.
+    assert_eq!(row(&o, &frozen.addr).state, "stalled", "{}", text(&o));
+    assert_eq!(row(&o, &steady.addr).state, "ok", "{}", text(&o));
 }

@@ -5,7 +5,7 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
-use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use photon_tests::{WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir};
 use std::path::Path;
 use std::process::{Command, Output};
 use std::time::Duration;
@@ -32,27 +32,10 @@ fn bits(path: &Path) -> Vec<u32> {
     Image::read(path).unwrap().pixels.iter().map(|v| v.to_bits()).collect()
 }
 
-/// A worker's row of the end table: units it rendered, blob bytes shipped to it from the coordinator and from
-/// peers, photon paths it traced.
-struct Row {
-    units: u64,
-    shipped: String,
-    fetched: String,
-    paths: u64,
-}
-
-fn row(o: &Output, addr: &str) -> Row {
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let line = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("{}", text(o)));
-    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s,
-    // load s, photon paths
-    let words: Vec<&str> = line.split_whitespace().collect();
-    Row {
-        units: words[4].parse().unwrap(),
-        shipped: format!("{} {}", words[7], words[8]),
-        fetched: format!("{} {}", words[9], words[10]),
-        paths: words[13].parse().unwrap(),
-    }
+/// A worker's row of the end table.
+fn row(o: &Output, addr: &str) -> WorkerRow {
+    WorkerRow::find(&String::from_utf8_lossy(&o.stdout), addr)
+        .unwrap_or_else(|| panic!("no row for {addr}: {}", text(o)))
 }
 
 /// Whether a table's byte count is a megabyte or more (a photons blob), not a scene blob's kilobytes.
@@ -94,9 +77,9 @@ fn shipped_traced_and_chosen_maps_give_the_same_bytes() {
             }
             if mode == "peers" {
                 // The coordinator uploads the maps to one worker; the other fetches them from it.
-                let rows: Vec<Row> = ws.iter().map(|w| row(&o, &w.addr)).collect();
+                let rows: Vec<WorkerRow> = ws.iter().map(|w| row(&o, &w.addr)).collect();
                 let from_here = rows.iter().filter(|r| megabytes(&r.shipped)).count();
-                let from_peer = rows.iter().filter(|r| megabytes(&r.fetched) && !megabytes(&r.shipped)).count();
+                let from_peer = rows.iter().filter(|r| megabytes(&r.from_peers) && !megabytes(&r.shipped)).count();
                 assert_eq!((from_here, from_peer), (1, 1), "{}", text(&o));
             }
             // Tracing workers trace every path of the maps themselves, once each, and report it with a finished
@@ -106,7 +89,7 @@ fn shipped_traced_and_chosen_maps_give_the_same_bytes() {
             let caustic = u64::from(method == "final-gather");
             let mut tracers = 0;
             for w in &ws {
-                let Row { units, shipped, paths, .. } = row(&o, &w.addr);
+                let WorkerRow { units, shipped, photon_paths: paths, .. } = row(&o, &w.addr);
                 if traced {
                     let all = PATHS * (1 + caustic);
                     assert!(paths == all || (units == 0 && paths == 0), "{method} {mode}: {}", text(&o));
@@ -126,7 +109,7 @@ fn shipped_traced_and_chosen_maps_give_the_same_bytes() {
                 // (A worker that rendered nothing the first time may trace now, for its first strip.)
                 let first_units: Vec<u64> = ws.iter().map(|w| row(&first, &w.addr).units).collect();
                 for (w, before) in ws.iter().zip(first_units) {
-                    let paths = row(&o, &w.addr).paths;
+                    let paths = row(&o, &w.addr).photon_paths;
                     assert!(paths == 0 || before == 0, "{method} {mode} again: {}", text(&o));
                 }
             }
@@ -153,9 +136,9 @@ fn peers_pass_maps_on_with_the_token_and_a_corrupt_peer_loses_nothing() {
     let out = dir.join("peers.exr");
     let o = render_spp(&out, "photon-map", 16, &["--workers", &list, "--photon-maps", "peers", "--token-file", token]);
     assert!(o.status.success() && bits(&out) == want, "{}", text(&o));
-    let rows: Vec<Row> = ws.iter().map(|w| row(&o, &w.addr)).collect();
-    assert!(rows.iter().all(|r| megabytes(&r.shipped) != megabytes(&r.fetched)), "{}", text(&o));
-    let fetched = rows.iter().filter(|r| megabytes(&r.fetched)).count();
+    let rows: Vec<WorkerRow> = ws.iter().map(|w| row(&o, &w.addr)).collect();
+    assert!(rows.iter().all(|r| megabytes(&r.shipped) != megabytes(&r.from_peers)), "{}", text(&o));
+    let fetched = rows.iter().filter(|r| megabytes(&r.from_peers)).count();
     assert!((1..=2).contains(&fetched), "{}", text(&o));
     // Workers that serve corrupted bytes: every fetch fails its hash check, and the coordinator uploads the maps
     // itself instead. The image is the same.
@@ -170,7 +153,7 @@ fn peers_pass_maps_on_with_the_token_and_a_corrupt_peer_loses_nothing() {
     assert!(stderr.contains("fetch from peer") && stderr.contains("trying the next source"), "{}", text(&o));
     for w in &ws {
         let r = row(&o, &w.addr);
-        assert!(megabytes(&r.shipped) && !megabytes(&r.fetched), "{}", text(&o));
+        assert!(megabytes(&r.shipped) && !megabytes(&r.from_peers), "{}", text(&o));
     }
     assert!(!String::from_utf8_lossy(&o.stdout).contains("passed between workers"), "{}", text(&o));
 }

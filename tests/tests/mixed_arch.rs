@@ -11,7 +11,7 @@
 
 use photon_core::image_io::Image;
 use photon_core::metrics::compare;
-use photon_tests::{WorkerProcess, coordinator, run_with_timeout, scenes_dir, temp_dir};
+use photon_tests::{WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::Duration;
@@ -81,14 +81,9 @@ fn difference(a: &Path, b: &Path) -> (u64, f64) {
 
 /// The strips and speculative copies column of a worker's row in the coordinator's table.
 fn strips_and_speculative(o: &Output, addr: &str) -> (u32, u32) {
-    let stdout = String::from_utf8_lossy(&o.stdout);
-    let row = stdout.lines().find(|l| l.starts_with(addr)).unwrap_or_else(|| panic!("no row for {addr}: {}", text(o)));
-    // worker, platform (2 words), threads, units, busy s, Mpx/s, shipped (2 words), from peers (2 words), ship s,
-    // load s, photon paths, photon s, spec/dup, ...
-    let words: Vec<&str> = row.split_whitespace().collect();
-    let strips = words[4].parse().unwrap();
-    let spec = words[15].split('/').next().unwrap().parse().unwrap();
-    (strips, spec)
+    let row = WorkerRow::find(&String::from_utf8_lossy(&o.stdout), addr)
+        .unwrap_or_else(|| panic!("no row for {addr}: {}", text(o)));
+    (row.units as u32, row.speculative)
 }
 
 /// Every code path a worker runs: the camera, spheres (their UVs), rectangles, meshes with interpolated normals,

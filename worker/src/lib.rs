@@ -330,6 +330,15 @@ fn hostname() -> String {
         .unwrap_or_default()
 }
 
+/// Refuses what is not a blob id (64 lowercase hex digits), quoting it.
+fn check_blob_id(id: &str) -> Result<(), Status> {
+    if photon_proto::is_blob_id(id) {
+        Ok(())
+    } else {
+        Err(Status::invalid_argument(format!("{} is not a blob id (64 lowercase hex digits)", quote(id))))
+    }
+}
+
 /// The next chunk of an upload, waiting at most `idle` for it and never past `deadline`.
 async fn next_chunk(
     stream: &mut Streaming<pb::BlobChunk>,
@@ -429,14 +438,15 @@ impl Worker {
         Limits { strip_memory_bytes: self.config.strip_memory_bytes, threads: self.threads() }
     }
 
+    /// The longest a blob of `bytes` may take to arrive or to be read: the idle time plus its size over the
+    /// minimum rate ([`Config::upload_idle`], [`Config::upload_min_rate`]).
+    fn transfer_allowance(&self, bytes: u64) -> Duration {
+        self.config.upload_idle + Duration::from_secs_f64(bytes as f64 / self.config.upload_min_rate.max(1) as f64)
+    }
+
     /// Checks a blob's announced id and size.
     fn check_blob_header(&self, header: &pb::BlobHeader) -> Result<(), Status> {
-        if !photon_proto::is_blob_id(&header.id) {
-            return Err(Status::invalid_argument(format!(
-                "{} is not a blob id (64 lowercase hex digits)",
-                quote(&header.id)
-            )));
-        }
+        check_blob_id(&header.id)?;
         if header.size > self.config.max_blob_bytes {
             return Err(Status::resource_exhausted(format!(
                 "blob {} of {} bytes exceeds this worker's limit of {} bytes (photon-worker --max-blob-mib)",
@@ -477,9 +487,7 @@ impl Worker {
         }
         // The whole upload must keep a minimum rate, so a client that sends a byte now and then (never idle
         // long enough for the idle timeout) cannot keep its bytes reserved for ever.
-        let deadline = Instant::now()
-            + idle
-            + Duration::from_secs_f64(header.size as f64 / self.config.upload_min_rate.max(1) as f64);
+        let deadline = Instant::now() + self.transfer_allowance(header.size);
         let size = header.size as usize;
         // Grow with what arrives rather than trusting the announced size with one allocation; every chunk's bytes
         // are reserved from the upload budget as they arrive, and nothing is held while waiting for the network
@@ -538,19 +546,16 @@ impl Worker {
                 "a peer address of at most {MAX_PEER_URI} bytes and a CA certificate of at most {MAX_CA_BYTES} bytes"
             )));
         }
-        let uri = if peer.contains("://") { peer.to_owned() } else { format!("http://{peer}") };
+        let tls_ca = (!tls_ca.is_empty()).then_some(tls_ca);
+        let uri = photon_proto::transport::worker_uri(peer, tls_ca.is_some());
         if !(uri.starts_with("http://") || uri.starts_with("https://")) {
             return Err(Status::invalid_argument(format!(
                 "a peer is `host:port` or an http(s) URI, not {}",
                 quote(peer)
             )));
         }
-        let endpoint = if tls_ca.is_empty() {
-            photon_proto::transport::endpoint(&uri)
-        } else {
-            photon_proto::transport::tls_endpoint(&uri.replacen("http://", "https://", 1), tls_ca)
-        }
-        .map_err(|e| Status::invalid_argument(format!("bad peer address {}: {e}", quote(peer))))?;
+        let endpoint = photon_proto::transport::client_endpoint(&uri, tls_ca)
+            .map_err(|e| Status::invalid_argument(format!("bad peer address {}: {e}", quote(peer))))?;
         let channel =
             endpoint.connect().await.map_err(|e| Status::aborted(format!("cannot reach peer {}: {e}", quote(peer))))?;
         let mut client = pb::render_client::RenderClient::new(channel)
@@ -646,12 +651,7 @@ impl Render for Worker {
         }
         let mut missing = Vec::new();
         for id in ids {
-            if !photon_proto::is_blob_id(&id) {
-                return Err(Status::invalid_argument(format!(
-                    "{} is not a blob id (64 lowercase hex digits)",
-                    quote(&id)
-                )));
-            }
+            check_blob_id(&id)?;
             if !self.blobs.contains(&id) {
                 missing.push(id);
             }
@@ -694,9 +694,7 @@ impl Render for Worker {
     async fn get_blob(&self, request: Request<pb::GetBlobRequest>) -> Result<Response<Self::GetBlobStream>, Status> {
         let call = self.peers.admit(request.remote_addr())?;
         let id = request.into_inner().id;
-        if !photon_proto::is_blob_id(&id) {
-            return Err(Status::invalid_argument(format!("{} is not a blob id (64 lowercase hex digits)", quote(&id))));
-        }
+        check_blob_id(&id)?;
         let Ok(serving) = self.serving.clone().try_acquire_owned() else {
             return Err(Status::resource_exhausted(format!(
                 "this worker already serves {SERVED_AT_ONCE} blobs to peers; try another source"
@@ -707,9 +705,7 @@ impl Render for Worker {
         };
         // A reader that stops reading must not hold the blob and the call for ever: the whole blob goes within
         // the same allowance as an upload (idle time plus its size over the minimum rate), or the call ends.
-        let deadline = tokio::time::Instant::now()
-            + self.config.upload_idle
-            + Duration::from_secs_f64(blob.len() as f64 / self.config.upload_min_rate.max(1) as f64);
+        let deadline = tokio::time::Instant::now() + self.transfer_allowance(blob.len() as u64);
         let header = pb::BlobHeader { id, size: blob.len() as u64 };
         let corrupt = self.config.fault == Fault::CorruptBlobs;
         let (tx, rx) = mpsc::channel(3);
