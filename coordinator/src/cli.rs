@@ -70,8 +70,18 @@ pub(crate) struct RenderArgs {
     #[command(flatten)]
     pub(crate) farm: FarmArgs,
     /// Continue an interrupted render from the partial file it left (`OUTPUT.partial`).
-    #[arg(long, value_name = "FILE")]
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["time", "target_error"])]
     pub(crate) resume: Option<PathBuf>,
+    /// Render in rounds until this much time has passed since the command started (e.g. `90s`, `1.5m`): photon
+    /// passes for progressive photon mapping, samples per pixel for the other methods, replacing `--spp` and
+    /// `--passes`. The summary says how many were done; the image equals a render of that many.
+    #[arg(long, value_name = "TIME", value_parser = crate::bounded::parse_time)]
+    pub(crate) time: Option<std::time::Duration>,
+    /// Render in rounds until the estimated relative MSE (no reference needed) is at most this, e.g. `0.01`:
+    /// `path`, `direct` and `progressive` (whose estimate includes the gather radius's bias). With `--time`,
+    /// whichever comes first.
+    #[arg(long, value_name = "RELMSE", value_parser = crate::bounded::parse_target_error)]
+    pub(crate) target_error: Option<f64>,
     /// Rows per strip (default: about 16 strips per worker, at most 64 rows); for progressive photon mapping,
     /// passes per whole-image block (default: about 16 blocks per worker).
     #[arg(long, value_name = "N")]

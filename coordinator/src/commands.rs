@@ -44,8 +44,9 @@ fn render(args: RenderArgs) -> Result<()> {
     }
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t0 = Instant::now();
-    let scene = render_scene(&args)?;
-    fits_in_memory(&scene, args.rows_per_strip)?;
+    let mut scene = render_scene(&args)?;
+    let bound = bound(&args, &mut scene, t0)?;
+    fits_in_memory(&scene, args.rows_per_strip, bound.is_some())?;
     let resume = args.resume.as_deref().map(Partial::read).transpose()?;
     let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
         (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
@@ -64,6 +65,10 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     let decide = |prep: &Prepared| delivery::choose(args.photon_maps, prep, &model_farm);
     let (mut job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
+    if bound.is_some() {
+        // Whole-image blocks of passes or samples, in rounds.
+        job.passes = Some(crate::bounded::MAX_PASSES);
+    }
     if delivery.is_some_and(|d| d.mode == MapDelivery::Peers) {
         job.swarm = Some(std::sync::Arc::new(crate::swarm::Swarm::new(tls_ca.clone())));
     }
@@ -79,6 +84,7 @@ fn render(args: RenderArgs) -> Result<()> {
         resume,
         progress: !args.quiet,
         interrupt: Some(rt.block_on(async { crate::interrupt::watch_signals() })),
+        bound: bound.clone(),
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -89,6 +95,7 @@ fn render(args: RenderArgs) -> Result<()> {
     })?;
     let mut outcome = match outcome {
         Ok(o) => o,
+        Err(e) if bound.is_some() => bail!("{e}\nno round of the bounded render was complete: no image was written"),
         Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
     let t_assemble = Instant::now();
@@ -145,12 +152,14 @@ async fn model_farm(
 /// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is
 /// allocated; the error names the setting and what would fit. The strips count as rendered here, by the
 /// in-process workers of a render without hosts (the most a render allocates on this machine).
-fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>) -> Result<()> {
+fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> Result<()> {
     let Some(budget) = photon_core::prepare::budget::machine_memory() else { return Ok(()) };
     let (c, r) = (&scene.camera, &scene.render);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     // Progressive photon mapping renders whole-image pass blocks; `--rows-per-strip` is then passes per block.
+    // So does a render bounded by time or error, in blocks of samples.
     let rows = match r.integrator {
+        _ if bounded => c.height,
         Integrator::Progressive => c.height,
         _ => rows_per_strip.unwrap_or_else(|| crate::scheduler::rows_per_strip_for(c.height, 1)),
     };
@@ -158,6 +167,37 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>) -> Result<()> {
     tracing::info!(bytes = estimate.total(), budget, "memory estimate");
     estimate.check(budget, c.width, c.height, r).context("the job does not fit this machine's memory")?;
     Ok(())
+}
+
+/// The bound of `--time` and `--target-error`, if either is given, with the scene set up for it: its samples per
+/// pixel (or progressive passes) become the most a bounded render takes, the range its blocks are numbered in.
+/// Refuses `--target-error` for the methods whose error no number of samples lowers, and `--spp`/`--passes`.
+fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::bounded::Bound>> {
+    if args.time.is_none() && args.target_error.is_none() {
+        return Ok(None);
+    }
+    let r = &mut scene.render;
+    let progressive = r.integrator == Integrator::Progressive;
+    if args.spp.is_some() || args.passes.is_some() {
+        bail!("--spp and --passes fix the samples; --time and --target-error choose them: give one or the other");
+    }
+    if args.target_error.is_some() && matches!(r.integrator, Integrator::PhotonMap | Integrator::FinalGather) {
+        bail!(
+            "--target-error needs an error that more samples lower; `{}` keeps the bias of its photon maps \
+             (their count is fixed before the render): use `progressive` or `path`, or bound it with --time",
+            r.integrator
+        );
+    }
+    if progressive {
+        r.photons.passes = crate::bounded::MAX_PASSES;
+    } else {
+        r.spp = crate::bounded::MAX_PASSES;
+    }
+    Ok(Some(crate::bounded::Bound {
+        deadline: args.time.map(|t| t0 + t),
+        target_error: args.target_error,
+        bias_alpha: progressive.then_some(r.photons.alpha),
+    }))
 }
 
 /// The scene of `render`: the file, its `--set` pairs, then the flags that override settings as more pairs.
@@ -277,7 +317,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         Setting::Passes(n) => format!("{n} passes of {} photon paths", scene.render.photons.pass_photons),
         _ => format!("{} spp", args.spp),
     };
-    fits_in_memory(&scene, None)?;
+    fits_in_memory(&scene, None, false)?;
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let t = runtime()?.block_on(async {

@@ -61,6 +61,9 @@ pub struct Options {
     pub interrupt: Option<Interrupts>,
     /// How long the render waits, once no worker is left, for a lost one to come back before it gives up.
     pub rejoin_patience: Duration,
+    /// Render in rounds until a time or an estimated error ([`crate::bounded`]); the job must then hand out pass
+    /// blocks ([`Job::passes`]).
+    pub bound: Option<crate::bounded::Bound>,
 }
 
 /// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
@@ -77,6 +80,7 @@ impl Default for Options {
             progress: false,
             interrupt: None,
             rejoin_patience: REJOIN_PATIENCE,
+            bound: None,
         }
     }
 }
@@ -99,6 +103,8 @@ pub struct Outcome {
     pub render_s: f64,
     /// Strips resumed from a partial file.
     pub resumed: usize,
+    /// What a render bounded by time or error did: passes (samples) in the image, rounds, why it stopped.
+    pub bounded: Option<crate::bounded::BoundedReport>,
 }
 
 /// Why a render stopped before the image was complete.
@@ -269,6 +275,11 @@ struct Farm<'a> {
     none_active_since: Option<Duration>,
     /// The signal that asked to stop, once one has.
     interrupted: Option<Interrupt>,
+    /// A render bounded by time or error: its rounds, the sums of the round in flight (they join `passes` when
+    /// the round is complete, so the image holds whole rounds only) and why it stopped.
+    rounds: Option<crate::bounded::Rounds>,
+    round_sums: Option<PassAccumulator>,
+    stop_reason: Option<crate::bounded::StopReason>,
 }
 
 impl<'a> Farm<'a> {
@@ -280,18 +291,24 @@ impl<'a> Farm<'a> {
     ) -> Result<Self, FarmError> {
         let t0 = Instant::now();
         let n = workers.len() as u32;
-        let rows_per_strip = match (&options.resume, options.rows_per_strip, job.passes) {
-            (Some(p), _, _) => p.rows_per_strip,
-            (None, Some(r), _) => r,
-            (None, None, Some(passes)) => crate::scheduler::passes_per_block_for(passes, n),
-            (None, None, None) => crate::scheduler::rows_per_strip_for(job.height, n),
-        };
         let pixels = 3 * job.width as usize * job.height as usize;
-        // Progressive photon mapping schedules its passes as the scheduler's "rows".
-        let (units, image, passes) = match job.passes {
-            Some(p) => (p, Vec::new(), Some(PassAccumulator::new(pixels, p))),
-            None => (job.height, vec![0.0f32; pixels], None),
+        // A bounded render starts with its first round; the others with the whole job.
+        let mut rounds = options.bound.clone().map(|b| crate::bounded::Rounds::new(b, pixels));
+        let first = rounds.as_mut().map(|r| r.first(workers.len()));
+        let rows_per_strip = match (&options.resume, options.rows_per_strip, job.passes, first) {
+            (_, _, _, Some(plan)) => plan.per_block,
+            (Some(p), _, _, _) => p.rows_per_strip,
+            (None, Some(r), _, _) => r,
+            (None, None, Some(passes), _) => crate::scheduler::passes_per_block_for(passes, n),
+            (None, None, None, _) => crate::scheduler::rows_per_strip_for(job.height, n),
         };
+        // Progressive photon mapping (and a bounded render) schedules its passes as the scheduler's "rows".
+        let (units, image, passes) = match (job.passes, first) {
+            (Some(_), Some(plan)) => (plan.passes, Vec::new(), Some(PassAccumulator::new(pixels, 1))),
+            (Some(p), None) => (p, Vec::new(), Some(PassAccumulator::new(pixels, p))),
+            (None, _) => (job.height, vec![0.0f32; pixels], None),
+        };
+        let round_sums = first.map(|_| PassAccumulator::new(pixels, 1));
         let members = workers
             .iter()
             .map(|a| Member {
@@ -332,6 +349,9 @@ impl<'a> Farm<'a> {
             rejoin_patience: options.rejoin_patience,
             none_active_since: None,
             interrupted: None,
+            rounds,
+            round_sums,
+            stop_reason: None,
         };
         if let Some(p) = &options.resume {
             farm.resume(p)?;
@@ -397,13 +417,16 @@ impl<'a> Farm<'a> {
     /// How the render ended at `now`, once it has.
     fn end(&mut self, now: Duration) -> Option<Result<(), Stop>> {
         if self.sched.is_done() {
-            return Some(Ok(()));
+            return match self.rounds.is_some() {
+                true => self.next_round(),
+                false => Some(Ok(())),
+            };
         }
         if let Some((strip, failure)) = self.sched.fatal() {
             return Some(Err(Stop::Fatal(format!("{strip}: {}", failure.reason))));
         }
         if let Some(signal) = self.interrupted {
-            return Some(Err(Stop::Interrupted(signal)));
+            return Some(self.keep_rounds(crate::bounded::StopReason::Interrupted, Stop::Interrupted(signal)));
         }
         if !(self.unresolved == 0 && self.sched.all_workers_gone()) {
             self.none_active_since = None;
@@ -411,7 +434,41 @@ impl<'a> Farm<'a> {
         }
         let since = *self.none_active_since.get_or_insert(now);
         let waiting = self.members.iter().any(|m| m.rejoining.is_some());
-        (!waiting || now.saturating_sub(since) >= self.rejoin_patience).then_some(Err(Stop::NoWorkers))
+        (!waiting || now.saturating_sub(since) >= self.rejoin_patience)
+            .then(|| self.keep_rounds(crate::bounded::StopReason::NoWorkers, Stop::NoWorkers))
+    }
+
+    /// A bounded render whose round is complete: its sums join the image, and the next round is queued, or the
+    /// render ends.
+    fn next_round(&mut self) -> Option<Result<(), Stop>> {
+        let rounds = self.rounds.as_mut()?;
+        if let (Some(acc), Some(round)) = (&mut self.passes, &mut self.round_sums) {
+            acc.absorb(round);
+        }
+        let estimate = rounds.end_round();
+        tracing::info!(passes = rounds.passes(), rounds = rounds.completed(), ?estimate, "round complete");
+        let active = self.sched.workers().filter(|(_, s)| s.state == WorkerState::Active).count();
+        match rounds.next(active) {
+            Ok(plan) => {
+                self.sched.extend(plan.passes, plan.per_block);
+                self.bar.set_length(self.sched.strip_count() as u64);
+                None
+            }
+            Err(reason) => {
+                self.stop_reason = Some(reason);
+                Some(Ok(()))
+            }
+        }
+    }
+
+    /// How a render that must stop for `reason` ends: a bounded one with a complete round keeps its rounds;
+    /// the others fail with `stop`.
+    fn keep_rounds(&mut self, reason: crate::bounded::StopReason, stop: Stop) -> Result<(), Stop> {
+        if self.rounds.as_ref().is_some_and(|r| r.completed() > 0) {
+            self.stop_reason = Some(reason);
+            return Ok(());
+        }
+        Err(stop)
     }
 
     fn on_event(&mut self, event: Event, now: Duration) {
@@ -529,7 +586,13 @@ impl<'a> Farm<'a> {
     fn accept(&mut self, strip: StripId, data: StripData, rays: u64, cancel: Vec<(WorkerId, StripId)>) {
         if let Some(rows) = self.sched.strip_rows(strip) {
             match (data, &mut self.passes) {
-                (StripData::Sums(sums), Some(acc)) => acc.add(&sums),
+                (StripData::Sums(sums), Some(acc)) => match (&mut self.rounds, &mut self.round_sums) {
+                    (Some(rounds), Some(round)) => {
+                        rounds.add_block(strip.0, rows.len() as u32, &sums);
+                        round.add(&sums);
+                    }
+                    _ => acc.add(&sums),
+                },
                 (StripData::Pixels(pixels), None) => {
                     let at = 3 * self.job.width as usize * rows.start as usize;
                     self.image[at..at + pixels.len()].copy_from_slice(&pixels);
@@ -644,12 +707,19 @@ impl<'a> Farm<'a> {
         let workers = self.reports();
         let stop = match result {
             Ok(()) => {
-                let pixels = match &self.passes {
-                    Some(acc) => acc.image(),
-                    None => self.image,
+                let bounded = self.rounds.as_ref().map(|r| crate::bounded::BoundedReport {
+                    passes: r.passes(),
+                    rounds: r.completed(),
+                    reason: self.stop_reason.unwrap_or(crate::bounded::StopReason::Cap),
+                    rel_mse_estimate: r.last_estimate(),
+                });
+                let pixels = match (&self.passes, &bounded) {
+                    (Some(acc), Some(b)) => acc.image_of(b.passes),
+                    (Some(acc), None) => acc.image(),
+                    (None, _) => self.image,
                 };
                 let (rays, photon_paths, resumed) = (self.rays, self.photon_paths, self.resumed);
-                return Ok(Outcome { pixels, rays, photon_paths, workers, ship_s, render_s, resumed });
+                return Ok(Outcome { pixels, rays, photon_paths, workers, ship_s, render_s, resumed, bounded });
             }
             Err(stop) => stop,
         };

@@ -118,23 +118,30 @@ impl Summary<'_> {
     pub fn line(&self, outcome: &Outcome) -> String {
         let settings = self.settings;
         let (width, height) = self.size;
-        // Progressive photon mapping takes one camera sample per pass; the others take `spp`.
+        // Progressive photon mapping takes one camera sample per pass; the others take `spp`. A bounded render
+        // took as many as its completed rounds hold.
         let ph = &settings.photons;
-        let samples = match settings.integrator {
+        let (spp, passes) = outcome.bounded.as_ref().map_or((settings.spp, ph.passes), |b| (b.passes, b.passes));
+        let mut samples = match settings.integrator {
             Integrator::Progressive => format!(
-                "{} passes of {} photon paths ({} paths traced on the workers)",
-                ph.passes, ph.pass_photons, outcome.photon_paths
+                "{passes} passes of {} photon paths ({} paths traced on the workers)",
+                ph.pass_photons, outcome.photon_paths
             ),
             Integrator::PhotonMap | Integrator::FinalGather => match self.delivery {
-                Some(d) if d.mode == MapDelivery::Trace => format!(
-                    "{} spp, photon maps {d}: {} paths traced on the workers",
-                    settings.spp, outcome.photon_paths
-                ),
-                Some(d) => format!("{} spp, photon maps of {} paths {d}", settings.spp, ph.global),
-                None => format!("{} spp, photon maps of {} paths traced here", settings.spp, ph.global),
+                Some(d) if d.mode == MapDelivery::Trace => {
+                    format!("{spp} spp, photon maps {d}: {} paths traced on the workers", outcome.photon_paths)
+                }
+                Some(d) => format!("{spp} spp, photon maps of {} paths {d}", ph.global),
+                None => format!("{spp} spp, photon maps of {} paths traced here", ph.global),
             },
-            _ => format!("{} spp", settings.spp),
+            _ => format!("{spp} spp"),
         };
+        if let Some(b) = &outcome.bounded {
+            samples.push_str(&format!(" in {} rounds, stopped {}", b.rounds, b.reason));
+            if let Some(e) = b.rel_mse_estimate {
+                samples.push_str(&format!(" (estimated relMSE {e:.3e})"));
+            }
+        }
         let units = if settings.integrator == Integrator::Progressive { "pass blocks" } else { "strips" };
         let mut extras =
             if outcome.resumed > 0 { format!(", {} {units} resumed", outcome.resumed) } else { String::new() };

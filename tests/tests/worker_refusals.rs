@@ -193,9 +193,13 @@ async fn pass_blocks_are_checked_against_the_job() {
             }
             assert_eq!(bytes, 4 * 8 * 24);
         } else {
-            let e = c.render_strip(req((0, 2))).await.unwrap_err();
-            assert_eq!(e.code(), Code::InvalidArgument);
-            assert!(e.message().contains("not progressive photon mapping"), "{}", e.message());
+            // The other methods take blocks of sample indices within the frame's samples per pixel.
+            let spp = prep.settings.spp;
+            for bad in [(3, 2), (spp, spp + 1)] {
+                let e = c.render_strip(req(bad)).await.unwrap_err();
+                assert_eq!(e.code(), Code::OutOfRange, "{bad:?}");
+                assert!(e.message().contains(&format!("within the job's {spp} samples per pixel")), "{}", e.message());
+            }
         }
     }
 }

@@ -426,6 +426,12 @@ pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Fram
         // Maps traced here are held here (received ones were bounded by the blob size limit on upload).
         estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
     }
+    if r.pass_end > r.pass_start && estimate.progressive == 0 {
+        // A block of samples answers with fixed-point sums, as a block of photon passes does.
+        estimate.progressive = u64::from(width)
+            .saturating_mul(u64::from(r.row_end - r.row_start))
+            .saturating_mul(photon_core::prepare::budget::PROGRESSIVE_BYTES_PER_PIXEL);
+    }
     estimate
         .check(limits.strip_memory_bytes, width, r.row_end - r.row_start, &frame.settings)
         .map_err(|e| Status::resource_exhausted(format!("this worker cannot render the strip: {e}")))?;
@@ -968,22 +974,20 @@ impl StripContext {
     }
 }
 
-/// Checks a request's passes against its frame: a pass block for progressive photon mapping, none otherwise.
+/// Checks a request's passes against its frame: a block of photon passes for progressive photon mapping, of
+/// sample indices (within `render.spp`) for the other methods, or none (`0..0`: a strip of rows at `render.spp`
+/// samples per pixel; never for progressive photon mapping).
 fn check_passes(r: &pb::StripRequest, settings: &photon_core::scene::RenderSettings) -> Result<(), Status> {
     let progressive = settings.integrator == Integrator::Progressive;
-    let total = settings.photons.passes;
     let (start, end) = (r.pass_start, r.pass_end);
-    if !progressive {
-        if (start, end) != (0, 0) {
-            return Err(Status::invalid_argument(format!(
-                "pass_start/pass_end {start}..{end} given for a job that is not progressive photon mapping; expected 0..0"
-            )));
-        }
+    if !progressive && (start, end) == (0, 0) {
         return Ok(());
     }
+    let (total, what) =
+        if progressive { (settings.photons.passes, "passes") } else { (settings.spp, "samples per pixel") };
     if start >= end || end > total {
         return Err(Status::out_of_range(format!(
-            "pass_start/pass_end {start}..{end}: expected a non-empty block within the job's {total} passes"
+            "pass_start/pass_end {start}..{end}: expected a non-empty block within the job's {total} {what}"
         )));
     }
     if end - start > MAX_BLOCK_PASSES {

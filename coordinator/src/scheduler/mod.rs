@@ -117,6 +117,24 @@ impl Scheduler {
         Self { policy, strips, retry: BTreeSet::new(), fresh, flights, workers, done: 0, fatal: None }
     }
 
+    /// Appends `units` more rows (passes, for pass blocks) after the last strip, cut into strips of `per_strip`
+    /// (0 is taken as 1), served after every strip already queued: the next round of a render bounded by time or
+    /// error. Returns the ids of the new strips.
+    pub fn extend(&mut self, units: u32, per_strip: u32) -> Range<u32> {
+        let step = per_strip.max(1);
+        let start = self.strips.last().map_or(0, |s| s.rows.end);
+        let end = start.saturating_add(units);
+        let first = self.strips.len() as u32;
+        let mut y0 = start;
+        while y0 < end {
+            let y1 = y0.saturating_add(step).min(end);
+            self.fresh.push_back(StripId(self.strips.len() as u32));
+            self.strips.push(Strip { rows: y0..y1, state: StripState::Pending, issued: 0 });
+            y0 = y1;
+        }
+        first..self.strips.len() as u32
+    }
+
     /// The policy in force.
     pub fn policy(&self) -> &Policy {
         &self.policy

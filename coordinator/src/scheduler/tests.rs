@@ -716,3 +716,29 @@ fn a_busy_worker_silent_past_its_limit_is_stalled_until_it_speaks() {
     assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(0.04))));
     assert_eq!(s.silence_limit(W0), secs(2.0));
 }
+
+#[test]
+fn a_bounded_render_appends_rounds_served_after_what_is_queued() {
+    // Round 1: passes 0..4 in blocks of 2; round 2 appends 4..9 in blocks of 3 (the last one shorter).
+    let mut s = Scheduler::new(4, 2);
+    s.add_worker(W0, 1);
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(1.0))));
+    let b = s.assign(W0, secs(1.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, b.strip, b.attempt, secs(2.0))));
+    assert!(s.is_done());
+    let ids = s.extend(5, 3);
+    assert_eq!(ids, 2..4);
+    assert!(!s.is_done());
+    assert_eq!((s.strip_rows(StripId(2)), s.strip_rows(StripId(3))), (Some(4..7), Some(7..9)));
+    assert_eq!(s.progress(), (2, 4));
+    let c = s.assign(W0, secs(2.0)).unwrap();
+    assert_eq!((c.strip, c.rows.clone()), (StripId(2), 4..7));
+    assert!(is_accepted(&s.complete(W0, c.strip, c.attempt, secs(3.0))));
+    let d = s.assign(W0, secs(3.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, d.strip, d.attempt, secs(4.0))));
+    assert!(s.is_done());
+    // Nothing appended: no strip, still done.
+    assert_eq!(s.extend(0, 3), 4..4);
+    assert!(s.is_done());
+}

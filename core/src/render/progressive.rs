@@ -91,6 +91,30 @@ pub fn to_fixed(v: f32) -> i64 {
     (f64::from(v.clamp(0.0, MAX_PASS_RADIANCE)) * f64::from(1u32 << SUM_FRACTION_BITS)).round() as i64
 }
 
+/// The mean of `n` fixed-point estimates whose sum is `sum`: `sum / (2²⁴ · n)`, divided in f64 then rounded to
+/// f32 (the one division of every pixel of a strip and of a pass accumulator, so both give the same bits).
+#[inline]
+pub fn fixed_mean(sum: i128, n: u32) -> f32 {
+    let scale = f64::from(1u32 << SUM_FRACTION_BITS) * f64::from(n.max(1));
+    (sum as f64 / scale) as f32
+}
+
+/// `Σ_{p ∈ passes} (r_p / r_0)^power`: the gather radii of passes `passes` relative to the first one's, raised to
+/// `power`. The kernel bias of a density estimate grows as `r²` where the density is smooth (Hachisuka, Ogaki &
+/// Jensen 2008, §4.3) and as `r` at its edges, so this sum is the factor by which the passes' mean bias differs
+/// from the first pass's. Walks the sequence once, `O(passes.end)`.
+pub fn radius_power_sum(alpha: f32, passes: Range<u32>, power: f64) -> f64 {
+    let mut r = RadiusSequence::at(1.0, alpha, 0);
+    let mut sum = 0.0;
+    while r.pass < passes.end {
+        if r.pass >= passes.start {
+            sum += r.ratio.powf(power / 2.0);
+        }
+        r = r.next();
+    }
+    sum
+}
+
 /// The pixel sums of a block of passes over some rows.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PassSums {
@@ -138,8 +162,11 @@ pub fn check_sums(sums: &[i64], passes: u32) -> Result<(), PassSumsError> {
 /// estimate. At most [`MAX_BLOCK_PASSES`] passes (more are cut off, as a caller that checked its input never asks
 /// for). `progress` gets the passes finished so far and returns `false` to cancel (then `None`).
 ///
-/// Several passes trace their photons and build their maps side by side (as many as the threads, within
-/// a memory bound); each pass's gather then runs over the rows in parallel.
+/// For progressive photon mapping a pass is one photon pass ([`PassSums`]); several passes trace their photons
+/// and build their maps side by side (as many as the threads, within a memory bound), and each pass's gather
+/// then runs over the rows in parallel. For the other methods a pass is one camera sample of every pixel, the
+/// sample of that index ([`super::render_sample_block`]): blocks of samples are how a render bounded by time or
+/// error is cut, and `K` samples in any blocks give the bits of a strip rendered at `K` samples per pixel.
 pub fn render_passes(
     prep: &Prepared,
     rows: Range<u32>,
@@ -147,6 +174,9 @@ pub fn render_passes(
     progress: &(dyn Fn(u32) -> bool + Sync),
 ) -> Option<PassSums> {
     let passes = passes.start..passes.end.min(passes.start.saturating_add(MAX_BLOCK_PASSES));
+    if prep.settings.integrator != crate::scene::Integrator::Progressive {
+        return super::render_sample_block(prep, rows, passes, progress);
+    }
     let ph = &prep.settings.photons;
     let width = prep.camera.width as usize;
     let mut sums = vec![0i64; 3 * width * rows.len()];
@@ -231,8 +261,8 @@ fn pixel_estimate(
     rays: &mut u64,
 ) -> Rgb {
     let settings = &prep.settings;
-    let (seed, passes) = (settings.seed, settings.photons.passes.max(1));
-    let (ray, mut s) = camera_sample(prep, seed, x, y, pass, passes, pixel_rotation(seed, x, y));
+    let seed = settings.seed;
+    let (ray, mut s) = camera_sample(prep, seed, x, y, pass, pixel_rotation(seed, x, y));
     let vp = visible_point(prep, settings.max_depth, ray, &mut s, rays);
     let Some((beta, hit, bsdf, wo)) = vp.vertex else { return finite_or_zero(vp.le) };
     let ld = vp.le + beta * sample_one_light(prep, &hit, &bsdf, wo, &mut s, rays, false);
@@ -264,6 +294,13 @@ impl PassAccumulator {
         }
     }
 
+    /// Adds `other`'s sums (as many as both hold) and zeroes `other`: a finished round joins the image.
+    pub fn absorb(&mut self, other: &mut Self) {
+        for (s, o) in self.sums.iter_mut().zip(other.sums.iter_mut()) {
+            *s += std::mem::take(o);
+        }
+    }
+
     /// The sums so far (for a partial file).
     pub fn sums(&self) -> &[i128] {
         &self.sums
@@ -278,10 +315,15 @@ impl PassAccumulator {
         true
     }
 
-    /// The image: linear RGB radiance, each value the sum divided by `2²⁴ × passes`.
+    /// The image: linear RGB radiance, each value the sum divided by `2²⁴ × passes` ([`fixed_mean`]).
     pub fn image(&self) -> Vec<f32> {
-        let scale = f64::from(1u32 << SUM_FRACTION_BITS) * f64::from(self.passes);
-        self.sums.iter().map(|&s| (s as f64 / scale) as f32).collect()
+        self.sums.iter().map(|&s| fixed_mean(s, self.passes)).collect()
+    }
+
+    /// The image over `passes` passes in all (the passes added so far, when a render stops at a bound rather
+    /// than at the count it was created with).
+    pub fn image_of(&self, passes: u32) -> Vec<f32> {
+        self.sums.iter().map(|&s| fixed_mean(s, passes.max(1))).collect()
     }
 }
 

@@ -1,0 +1,595 @@
+//! Renders bounded by time (`--time`) or by estimated error (`--target-error`): the image is rendered in
+//! **rounds** of whole-image blocks (photon passes for progressive photon mapping, camera samples per pixel for
+//! the other methods), and after each round the render goes on or stops.
+//!
+//! A block's fixed-point sums add exactly in any order, so the image after `K` passes (or samples) is the same
+//! bits however the rounds were cut and whichever workers rendered them: a bounded render that stopped after `K`
+//! samples equals `render --spp K`, and one that stopped after `K` passes equals `render --passes K`. Only `K`
+//! depends on the machines' speed.
+//!
+//! # Sizing the rounds
+//! The first round is one pass per block, two blocks per worker (at least two blocks, so that the error estimate
+//! has both halves). Each later round aims at half the time spent so far, between [`MIN_ROUND`] and
+//! [`MAX_ROUND`], at the rate the last round measured: rounds grow geometrically, so their count (and the
+//! image-sized blocks sent back) grows with the logarithm of the time. With `--time` a round is cut to what fits
+//! before the deadline, and no round starts when less than half a pass per block fits. With `--target-error` a
+//! round is also cut to the passes the error's `1/K` fall predicts are still needed (plus 10 %), and to at most
+//! the passes done (so `K` at most doubles between two estimates): the render stops soon after it crosses the
+//! target, with an error no less than about half of it.
+//!
+//! # Estimating the error without a reference
+//! Variance: the blocks are split by the parity of their index into two interleaved half-images `A` and `B`
+//! (interleaved blocks rather than interleaved samples: a block is the unit a worker returns, and both halves
+//! then span the whole render, so they carry the same bias). With `nA`, `nB` passes and per-pass variance σ²,
+//! `E[(Ā − B̄)²] = σ²(1/nA + 1/nB)`, so the variance of the full mean is estimated per pixel value as
+//! `(Ā − B̄)² / ((1/nA + 1/nB)(nA + nB))`. The (0,2)-sequence stratifies the samples of the whole render better
+//! than two independent halves, so this estimate errs high.
+//!
+//! Bias (progressive photon mapping only; the path tracer and direct lighting are unbiased): the kernel bias of a
+//! pass of squared radius `r_i²` is `c·r_i²` for a smooth radiance (Hachisuka, Ogaki & Jensen 2008, §4.3), with
+//! a per-pixel `c`. The render is also split in time at the round end nearest `K/2`: the first part's mean minus
+//! the second's is `D = c(m₁ − m₂) + noise`, where `m₁`, `m₂` are the parts' mean `r²/r₀²`
+//! ([`photon_core::render::progressive::radius_power_sum`]); the whole render's bias is `c·m`, so its square is
+//! estimated as `(m / (m₁ − m₂))² (D² − Var D)`, with `Var D` from σ² above. This is a two-level extrapolation
+//! (Richardson) of the bias model, not the Laplacian estimate of Hachisuka, Jarosz & Jensen 2010; at edges and
+//! caustic boundaries, where the bias grows as `r` rather than `r²`, it errs low (measured in docs/RESULTS.md).
+//!
+//! The estimate of the relative MSE is the mean over pixel values of `(variance + bias²) / (mean² + ε)` with the
+//! `ε` of [`photon_core::metrics::EPSILON`], the same definition `compare` measures against a reference. The bias
+//! term is summed over the image before it is clamped at 0.
+
+use photon_core::render::progressive::{SUM_FRACTION_BITS, radius_power_sum};
+use std::ops::Range;
+use std::time::{Duration, Instant};
+
+/// The most passes (or samples per pixel) a bounded render takes: the scene format's limit on passes.
+pub const MAX_PASSES: u32 = photon_core::scene::MAX_PASSES;
+
+/// The shortest round aimed at.
+pub const MIN_ROUND: Duration = Duration::from_secs(1);
+
+/// The longest round aimed at.
+pub const MAX_ROUND: Duration = Duration::from_secs(60);
+
+/// What bounds a render.
+#[derive(Clone, Debug)]
+pub struct Bound {
+    /// Start no round that cannot finish before this instant.
+    pub deadline: Option<Instant>,
+    /// Stop once the estimated relative MSE is at most this.
+    pub target_error: Option<f64>,
+    /// Progressive photon mapping's α (the radius sequence): the error estimate then includes the kernel bias.
+    /// `None` for the unbiased methods.
+    pub bias_alpha: Option<f32>,
+}
+
+/// Why a bounded render stopped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StopReason {
+    /// The time ran out.
+    Time,
+    /// The estimated error reached the target.
+    Error,
+    /// [`MAX_PASSES`] were rendered.
+    Cap,
+    /// A signal asked to stop; the finished rounds are kept.
+    Interrupted,
+    /// No worker was left; the finished rounds are kept.
+    NoWorkers,
+}
+
+impl std::fmt::Display for StopReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Self::Time => "at the time limit",
+            Self::Error => "at the target error",
+            Self::Cap => "at the most passes a render takes",
+            Self::Interrupted => "by a signal",
+            Self::NoWorkers => "with no worker left",
+        })
+    }
+}
+
+/// What a bounded render did, for the summary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BoundedReport {
+    /// Passes (or samples per pixel) in the image: those of the completed rounds.
+    pub passes: u32,
+    /// Rounds completed.
+    pub rounds: u32,
+    /// Why it stopped.
+    pub reason: StopReason,
+    /// The last estimate of the relative MSE, when one was made.
+    pub rel_mse_estimate: Option<f64>,
+}
+
+/// The next round: `passes` passes in blocks of `per_block`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RoundPlan {
+    /// Passes in the round.
+    pub passes: u32,
+    /// Passes per block.
+    pub per_block: u32,
+}
+
+/// The rounds of one bounded render: when each ended, how fast it went, and the error estimate.
+#[derive(Debug)]
+pub struct Rounds {
+    bound: Bound,
+    started: Instant,
+    round_started: Instant,
+    /// Passes at the end of each completed round.
+    ends: Vec<u32>,
+    /// Passes of the round in flight.
+    current: u32,
+    /// Seconds and passes of the last completed round.
+    last: Option<(f64, u32)>,
+    estimate: ErrorEstimate,
+    last_estimate: Option<f64>,
+}
+
+impl Rounds {
+    /// Rounds of a render of `values` pixel values (3 per pixel) bounded by `bound`, starting now.
+    pub fn new(bound: Bound, values: usize) -> Self {
+        let now = Instant::now();
+        let estimate = ErrorEstimate::new(values, bound.target_error.is_some(), bound.bias_alpha);
+        Self {
+            bound,
+            started: now,
+            round_started: now,
+            ends: Vec::new(),
+            current: 0,
+            last: None,
+            estimate,
+            last_estimate: None,
+        }
+    }
+
+    /// The first round for `workers` workers.
+    pub fn first(&mut self, workers: usize) -> RoundPlan {
+        let blocks = blocks_per_round(workers);
+        self.current = blocks;
+        self.round_started = Instant::now();
+        RoundPlan { passes: blocks, per_block: 1 }
+    }
+
+    /// Passes of the completed rounds.
+    pub fn passes(&self) -> u32 {
+        self.ends.last().copied().unwrap_or(0)
+    }
+
+    /// Rounds completed.
+    pub fn completed(&self) -> u32 {
+        self.ends.len() as u32
+    }
+
+    /// The last estimate of the relative MSE.
+    pub fn last_estimate(&self) -> Option<f64> {
+        self.last_estimate
+    }
+
+    /// Adds an accepted block of the round in flight: its index (for the interleaved halves), its passes and
+    /// its fixed-point sums.
+    pub fn add_block(&mut self, index: u32, passes: u32, sums: &[i64]) {
+        self.estimate.add_block(index, passes, sums);
+    }
+
+    /// Ends the round in flight; returns the new error estimate when the render estimates one.
+    pub fn end_round(&mut self) -> Option<f64> {
+        let passes = self.passes() + self.current;
+        self.ends.push(passes);
+        self.last = Some((self.round_started.elapsed().as_secs_f64(), self.current));
+        self.estimate.end_round();
+        self.last_estimate = self.bound.target_error.and_then(|_| self.estimate.rel_mse());
+        self.last_estimate
+    }
+
+    /// The next round for `workers` workers, or why the render stops.
+    pub fn next(&mut self, workers: usize) -> Result<RoundPlan, StopReason> {
+        let now = Instant::now();
+        let plan = plan_round(&RoundState {
+            done: self.passes(),
+            elapsed: now.duration_since(self.started),
+            remaining: self.bound.deadline.map(|d| d.saturating_duration_since(now)),
+            last: self.last,
+            estimate: self.last_estimate,
+            target: self.bound.target_error,
+            workers,
+        })?;
+        self.current = plan.passes;
+        self.round_started = now;
+        Ok(plan)
+    }
+}
+
+/// Blocks in a round for `workers` workers: two each, and at least two (one per half of the error estimate).
+fn blocks_per_round(workers: usize) -> u32 {
+    (2 * workers.max(1)).min(1024) as u32
+}
+
+/// What [`plan_round`] decides from.
+#[derive(Clone, Copy, Debug)]
+struct RoundState {
+    /// Passes done.
+    done: u32,
+    /// Time since the render started.
+    elapsed: Duration,
+    /// Time left before the deadline, if there is one.
+    remaining: Option<Duration>,
+    /// Seconds and passes of the last round.
+    last: Option<(f64, u32)>,
+    /// The last error estimate.
+    estimate: Option<f64>,
+    /// The target error.
+    target: Option<f64>,
+    /// Workers active.
+    workers: usize,
+}
+
+/// The next round, or why the render stops (see the module documentation).
+fn plan_round(s: &RoundState) -> Result<RoundPlan, StopReason> {
+    if let (Some(e), Some(t)) = (s.estimate, s.target)
+        && e <= t
+    {
+        return Err(StopReason::Error);
+    }
+    let left = MAX_PASSES.saturating_sub(s.done);
+    if left == 0 {
+        return Err(StopReason::Cap);
+    }
+    let blocks = blocks_per_round(s.workers);
+    // Passes per second the last round measured (its first round: one pass per block).
+    let rate = s.last.map_or(0.0, |(secs, passes)| f64::from(passes) / secs.max(1e-3));
+    let aim = (s.elapsed / 2).clamp(MIN_ROUND, MAX_ROUND);
+    let mut passes = (rate * aim.as_secs_f64()).max(f64::from(blocks));
+    if let Some(remaining) = s.remaining {
+        let fits = rate * remaining.as_secs_f64();
+        if remaining.is_zero() || fits < 0.5 * f64::from(blocks) {
+            return Err(StopReason::Time);
+        }
+        passes = passes.min(fits);
+    }
+    if s.target.is_some() {
+        // At most as many as are done, so that K at most doubles between two estimates; and the error falls as
+        // 1/K (variance) or slower, so K·(e/t) passes in all is the fewest that can reach the target.
+        let needed = match (s.estimate, s.target) {
+            (Some(e), Some(t)) => f64::from(s.done) * (e / t - 1.0) * 1.1,
+            _ => f64::INFINITY,
+        };
+        passes = passes.min(needed.min(f64::from(s.done)).max(f64::from(blocks)));
+    }
+    let passes = (passes.round() as u32).clamp(1, left);
+    let per_block = passes.div_ceil(blocks).clamp(1, photon_core::render::progressive::MAX_BLOCK_PASSES);
+    Ok(RoundPlan { passes, per_block })
+}
+
+/// The error estimate of a bounded render (see the module documentation): two interleaved half-images by block
+/// parity, and, for the bias of progressive photon mapping, the sums of each round.
+#[derive(Debug, Default)]
+pub struct ErrorEstimate {
+    /// Radiance sums (W·sr⁻¹·m⁻² × passes) of the even and odd blocks, and their passes. Empty when the render
+    /// estimates no error.
+    halves: [Vec<f64>; 2],
+    half_passes: [u64; 2],
+    /// Progressive photon mapping: the radiance sums and passes of each completed round, and of the one in flight.
+    rounds: Vec<(Vec<f32>, u32)>,
+    current: Vec<f64>,
+    current_passes: u32,
+    alpha: Option<f32>,
+}
+
+/// One fixed-point unit in radiance.
+const UNIT: f64 = 1.0 / (1u64 << SUM_FRACTION_BITS) as f64;
+
+impl ErrorEstimate {
+    /// An estimate over `values` pixel values; nothing is kept unless `enabled`. `alpha`: the bias model's α.
+    pub fn new(values: usize, enabled: bool, alpha: Option<f32>) -> Self {
+        if !enabled {
+            return Self::default();
+        }
+        let current = if alpha.is_some() { vec![0.0; values] } else { Vec::new() };
+        Self { halves: [vec![0.0; values], vec![0.0; values]], current, alpha, ..Self::default() }
+    }
+
+    /// Adds block `index` of `passes` passes with fixed-point sums `sums`.
+    pub fn add_block(&mut self, index: u32, passes: u32, sums: &[i64]) {
+        let half = (index % 2) as usize;
+        if self.halves[half].is_empty() {
+            return;
+        }
+        for (h, &s) in self.halves[half].iter_mut().zip(sums) {
+            *h += s as f64 * UNIT;
+        }
+        self.half_passes[half] += u64::from(passes);
+        if self.alpha.is_some() {
+            for (c, &s) in self.current.iter_mut().zip(sums) {
+                *c += s as f64 * UNIT;
+            }
+            self.current_passes += passes;
+        }
+    }
+
+    /// Closes the round in flight (its sums become one round of the time split).
+    pub fn end_round(&mut self) {
+        if self.alpha.is_some() && self.current_passes > 0 {
+            let sums = self.current.iter().map(|&v| v as f32).collect();
+            self.rounds.push((sums, self.current_passes));
+            self.current.iter_mut().for_each(|v| *v = 0.0);
+            self.current_passes = 0;
+        }
+    }
+
+    /// The estimated relative MSE of the mean of every block added so far, or `None` before both halves have a
+    /// block (and, with the bias model, before two rounds are complete).
+    pub fn rel_mse(&self) -> Option<f64> {
+        let [na, nb] = self.half_passes.map(|n| n as f64);
+        if na == 0.0 || nb == 0.0 {
+            return None;
+        }
+        let n = na + nb;
+        let split = match self.alpha {
+            Some(alpha) => Some(self.time_split(alpha)?),
+            None => None,
+        };
+        let (mut var_sum, mut bias_sum) = (0.0, 0.0);
+        for i in 0..self.halves[0].len() {
+            let (a, b) = (self.halves[0][i], self.halves[1][i]);
+            let d = a / na - b / nb;
+            // σ²: the variance of one pass.
+            let sigma2 = d * d / (1.0 / na + 1.0 / nb);
+            // The reference's value is unknown: the smaller half's mean stands in for it, which a rare large
+            // sample (a firefly) in one half does not inflate (the full mean would, hiding that very error).
+            let low = (a / na).min(b / nb).max(0.0);
+            let den = low * low + photon_core::metrics::EPSILON;
+            var_sum += sigma2 / n / den;
+            if let Some(split) = &split {
+                let dt = split.first[i] / split.p1 - split.second[i] / split.p2;
+                let var_d = sigma2 * (1.0 / split.p1 + 1.0 / split.p2);
+                bias_sum += split.gain * split.gain * (dt * dt - var_d) / den;
+            }
+        }
+        let values = self.halves[0].len().max(1) as f64;
+        Some((var_sum + bias_sum.max(0.0)) / values)
+    }
+
+    /// The split of the completed rounds at the round end nearest half the passes, with the bias model's gain
+    /// `m / (m₁ − m₂)`; `None` before two rounds or when the two parts' radii hardly differ.
+    fn time_split(&self, alpha: f32) -> Option<TimeSplit> {
+        if self.rounds.len() < 2 {
+            return None;
+        }
+        let total: u32 = self.rounds.iter().map(|r| r.1).sum();
+        let mut ends = self.rounds.iter().scan(0u32, |acc, r| {
+            *acc += r.1;
+            Some(*acc)
+        });
+        let (j, p) = ends
+            .by_ref()
+            .take(self.rounds.len() - 1)
+            .enumerate()
+            .min_by_key(|&(_, p)| (i64::from(p) - i64::from(total) / 2).abs())?;
+        let (p1, p2) = (f64::from(p), f64::from(total - p));
+        let m1 = radius_power_sum(alpha, 0..p, 2.0) / p1;
+        let m2 = radius_power_sum(alpha, p..total, 2.0) / p2;
+        let m = radius_power_sum(alpha, 0..total, 2.0) / f64::from(total);
+        if m1 - m2 <= 1e-6 * m {
+            return None;
+        }
+        let sum_of = |rounds: &[(Vec<f32>, u32)]| {
+            let mut s = vec![0.0f64; self.halves[0].len()];
+            for (r, _) in rounds {
+                for (a, &v) in s.iter_mut().zip(r) {
+                    *a += f64::from(v);
+                }
+            }
+            s
+        };
+        Some(TimeSplit {
+            first: sum_of(&self.rounds[..=j]),
+            second: sum_of(&self.rounds[j + 1..]),
+            p1,
+            p2,
+            gain: m / (m1 - m2),
+        })
+    }
+}
+
+/// The completed rounds split in two parts in time.
+struct TimeSplit {
+    /// Radiance sums of the first and second parts, and their passes.
+    first: Vec<f64>,
+    second: Vec<f64>,
+    p1: f64,
+    p2: f64,
+    /// `m / (m₁ − m₂)`: the whole render's bias over the expected difference of the parts' means.
+    gain: f64,
+}
+
+/// The passes of a round, `start..start + plan.passes`.
+pub fn round_range(start: u32, plan: RoundPlan) -> Range<u32> {
+    start..start.saturating_add(plan.passes)
+}
+
+/// Parses a `--time` value: a number with an optional unit `ms`, `s` (the default), `m` or `h`, e.g. `90s`,
+/// `1.5m`, `500ms`.
+pub fn parse_time(s: &str) -> Result<Duration, String> {
+    let t = s.trim();
+    let (number, scale) = [("ms", 1e-3), ("s", 1.0), ("m", 60.0), ("h", 3600.0)]
+        .iter()
+        .find_map(|&(unit, scale)| t.strip_suffix(unit).map(|n| (n, scale)))
+        .unwrap_or((t, 1.0));
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v * scale <= 1e7 => Ok(Duration::from_secs_f64(v * scale)),
+        _ => Err(format!("expected a positive time such as 90s, 1.5m or 500ms (at most 10⁷ s), found `{s}`")),
+    }
+}
+
+/// Parses a `--target-error` value: a relative MSE in (0, 1e6).
+pub fn parse_target_error(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v < 1e6 => Ok(v),
+        _ => Err(format!("expected a relative MSE greater than 0, e.g. 0.01, found `{s}`")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small deterministic generator of uniform numbers in [0, 1) (xorshift64*).
+    struct Rng(u64);
+
+    impl Rng {
+        fn seed_from_u64(seed: u64) -> Self {
+            Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+        }
+
+        fn random(&mut self) -> f64 {
+            self.0 ^= self.0 >> 12;
+            self.0 ^= self.0 << 25;
+            self.0 ^= self.0 >> 27;
+            (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    /// Fixed-point sums of `passes` draws of `value + noise` per pixel value.
+    fn block(rng: &mut Rng, values: &[f64], passes: u32, sigma: f64, bias: impl Fn(u32) -> f64) -> Vec<i64> {
+        values
+            .iter()
+            .map(|&v| {
+                (0..passes)
+                    .map(|p| {
+                        let x = v + bias(p) + sigma * (rng.random() - 0.5) * 12f64.sqrt();
+                        (x.max(0.0) / UNIT).round() as i64
+                    })
+                    .sum()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn the_variance_estimate_matches_the_true_error_of_noisy_pixels() {
+        // 2000 values of mean 1 with per-pass noise σ = 0.5: after n passes the relative MSE is σ²/n / (1 + ε).
+        let mut rng = Rng::seed_from_u64(7);
+        let values = vec![1.0; 2000];
+        let mut est = ErrorEstimate::new(values.len(), true, None);
+        for i in 0..8 {
+            est.add_block(i, 4, &block(&mut rng, &values, 4, 0.5, |_| 0.0));
+        }
+        let truth = 0.25 / 32.0 / (1.0 + photon_core::metrics::EPSILON);
+        let e = est.rel_mse().unwrap();
+        assert!((e / truth - 1.0).abs() < 0.15, "estimate {e}, truth {truth}");
+    }
+
+    #[test]
+    fn no_estimate_before_both_halves_have_a_block() {
+        let mut est = ErrorEstimate::new(3, true, None);
+        assert_eq!(est.rel_mse(), None);
+        est.add_block(0, 1, &[1 << 24, 1 << 24, 1 << 24]);
+        assert_eq!(est.rel_mse(), None);
+        est.add_block(1, 1, &[1 << 24, 1 << 24, 1 << 24]);
+        assert_eq!(est.rel_mse(), Some(0.0));
+        // Disabled: nothing kept, nothing estimated.
+        let mut off = ErrorEstimate::new(3, false, None);
+        off.add_block(0, 1, &[1, 1, 1]);
+        off.add_block(1, 1, &[1, 1, 1]);
+        assert_eq!(off.rel_mse(), None);
+    }
+
+    #[test]
+    fn the_bias_model_recovers_a_bias_proportional_to_the_squared_radius() {
+        // Pass p estimates 1 + c·r_p²/r_0² with c = 0.2 and small noise: the estimate is dominated by the bias
+        // of the mean, c·mean(r²/r₀²), which a variance-only estimate would miss.
+        let (alpha, c) = (0.7f32, 0.2);
+        let mut rng = Rng::seed_from_u64(11);
+        let values = vec![1.0; 500];
+        let ratio = |p: u32| radius_power_sum(alpha, p..p + 1, 2.0);
+        let mut est = ErrorEstimate::new(values.len(), true, Some(alpha));
+        let (mut start, mut index) = (0u32, 0u32);
+        for round in [4u32, 8, 16, 32] {
+            for _ in 0..2 {
+                let passes = round / 2;
+                let s = start;
+                est.add_block(index, passes, &block(&mut rng, &values, passes, 0.01, |p| c * ratio(s + p)));
+                start += passes;
+                index += 1;
+            }
+            est.end_round();
+        }
+        let bias = c * radius_power_sum(alpha, 0..start, 2.0) / f64::from(start);
+        let mean = 1.0 + bias;
+        let truth = bias * bias / (mean * mean + photon_core::metrics::EPSILON);
+        let e = est.rel_mse().unwrap();
+        assert!((e / truth - 1.0).abs() < 0.2, "estimate {e}, truth {truth}");
+        let variance_only = {
+            let mut v = ErrorEstimate::new(values.len(), true, None);
+            let mut rng = Rng::seed_from_u64(11);
+            for i in 0..8 {
+                v.add_block(i, 8, &block(&mut rng, &values, 8, 0.01, |_| 0.0));
+            }
+            v.rel_mse().unwrap()
+        };
+        assert!(variance_only < truth / 10.0, "{variance_only} vs {truth}");
+    }
+
+    fn state(done: u32, elapsed: f64, remaining: Option<f64>, last: Option<(f64, u32)>) -> RoundState {
+        RoundState {
+            done,
+            elapsed: Duration::from_secs_f64(elapsed),
+            remaining: remaining.map(Duration::from_secs_f64),
+            last,
+            estimate: None,
+            target: None,
+            workers: 2,
+        }
+    }
+
+    #[test]
+    fn rounds_grow_with_the_time_spent_and_fit_the_deadline() {
+        // 10 passes/s; 8 s spent: aim at 4 s = 40 passes in 4 blocks of 10.
+        let plan = plan_round(&state(20, 8.0, None, Some((2.0, 20)))).unwrap();
+        assert_eq!(plan, RoundPlan { passes: 40, per_block: 10 });
+        // Early on the round is at least MIN_ROUND long: 1 s = 10 passes.
+        assert_eq!(plan_round(&state(4, 0.5, None, Some((0.4, 4)))).unwrap().passes, 10);
+        // 1.5 s left: 15 passes.
+        assert_eq!(plan_round(&state(20, 8.0, Some(1.5), Some((2.0, 20)))).unwrap().passes, 15);
+        // 0.15 s left fits 1.5 passes, under half a pass per block: stop.
+        assert_eq!(plan_round(&state(20, 8.0, Some(0.15), Some((2.0, 20)))), Err(StopReason::Time));
+        assert_eq!(plan_round(&state(20, 8.0, Some(0.0), Some((2.0, 20)))), Err(StopReason::Time));
+        // The cap.
+        assert_eq!(plan_round(&state(MAX_PASSES, 8.0, None, Some((2.0, 20)))), Err(StopReason::Cap));
+        let near = plan_round(&state(MAX_PASSES - 3, 8.0, None, Some((2.0, 20)))).unwrap();
+        assert_eq!(near.passes, 3);
+    }
+
+    #[test]
+    fn a_target_stops_the_render_and_cuts_the_last_rounds() {
+        let mut s = state(100, 20.0, None, Some((5.0, 100)));
+        s.target = Some(0.01);
+        // 1.5 times the target: at most 100·(1.5 − 1)·1.1 = 55 more passes, not the 200 the time aim allows.
+        s.estimate = Some(0.015);
+        assert_eq!(plan_round(&s).unwrap().passes, 55);
+        // Far above it: at most the 100 done, so K at most doubles.
+        s.estimate = Some(1.0);
+        assert_eq!(plan_round(&s).unwrap().passes, 100);
+        s.estimate = Some(0.0099);
+        assert_eq!(plan_round(&s), Err(StopReason::Error));
+    }
+
+    #[test]
+    fn time_values_parse_with_units_and_refuse_the_rest() {
+        assert_eq!(parse_time("90s"), Ok(Duration::from_secs(90)));
+        assert_eq!(parse_time("90"), Ok(Duration::from_secs(90)));
+        assert_eq!(parse_time("1.5m"), Ok(Duration::from_secs(90)));
+        assert_eq!(parse_time("500ms"), Ok(Duration::from_millis(500)));
+        assert_eq!(parse_time("2h"), Ok(Duration::from_secs(7200)));
+        for bad in ["", "0s", "-3s", "abc", "nan", "inf", "3 days"] {
+            let e = parse_time(bad).unwrap_err();
+            assert!(e.contains("expected a positive time"), "{bad}: {e}");
+        }
+        assert_eq!(parse_target_error("0.01"), Ok(0.01));
+        for bad in ["0", "-1", "nan", "x"] {
+            assert!(parse_target_error(bad).is_err(), "{bad}");
+        }
+    }
+}
