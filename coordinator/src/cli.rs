@@ -27,8 +27,9 @@ pub(crate) enum Command {
     /// when the scene has point-light caustics. Renders on workers like `render` (in-process by default).
     Reference(ReferenceArgs),
     /// Render with several methods at growing budgets, measure each image against a reference, and write
-    /// sweep.csv, sweep.svg and sweep.png with equal-time and equal-error tables. Renders run one after another
-    /// on workers like `render` (in-process by default; `--workers`, `--hosts` or `--local` for others).
+    /// sweep.csv, sweep.svg and sweep.png with equal-time and equal-error tables, each method's image at its
+    /// largest budget with its error map, and report.html showing them all. Renders run one after another on
+    /// workers like `render` (in-process by default; `--workers`, `--hosts` or `--local` for others).
     Sweep(SweepArgs),
 }
 
@@ -250,7 +251,8 @@ pub(crate) struct SweepArgs {
     /// Image width and height, e.g. `96x96`; must match the reference (default: the reference's size).
     #[arg(long, value_parser = parse_size)]
     pub(crate) size: Option<(u32, u32)>,
-    /// Folder for sweep.csv, sweep.svg and sweep.png (created when missing).
+    /// Folder for sweep.csv, sweep.svg, sweep.png, report.html and its images: reference.png, METHOD.png and
+    /// METHOD-error.png (created when missing).
     #[arg(long, default_value = ".")]
     pub(crate) out: PathBuf,
     /// Override a scene setting for every render, e.g. `--set render.photons.pass_photons=20000`; repeatable.

@@ -360,7 +360,8 @@ fn sweep(args: SweepArgs) -> Result<()> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
     let base = overrides::pairs(&args.set, &[Setting::Size(width, height)]);
     // Load once before starting workers, so that a broken scene fails at once.
-    Scene::load_with(&args.scene, &base)?;
+    let exposure = Scene::load_with(&args.scene, &base)?.render.exposure;
+    reference.write(&args.out.join(sweep::REFERENCE_PNG), exposure)?;
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
     let rows = runtime()?.block_on(async {
         // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
@@ -385,14 +386,32 @@ fn sweep(args: SweepArgs) -> Result<()> {
     let title = format!("{name} {width}x{height}: relative MSE against wall time");
     let (svg, png) = (args.out.join("sweep.svg"), args.out.join("sweep.png"));
     sweep::draw_charts(&curves, &title, &svg, &png)?;
-    println!("\nequal time (relMSE, log-log interpolation):\n{}", sweep::equal_time_table(&curves));
-    println!("equal error (seconds, log-log interpolation; — out of the measured range):");
-    println!("{}", sweep::equal_error_table(&curves));
-    println!("wrote {}, {} and {}", csv_path.display(), svg.display(), png.display());
+    println!();
+    for (heading, table) in sweep::summaries(&curves) {
+        println!("{heading}:\n{}", table.markdown());
+    }
+    let report = sweep::Report {
+        scene: &args.scene,
+        reference: &args.reference,
+        size: (width, height),
+        threads: rayon::current_num_threads(),
+        set: &args.set,
+        rows: &rows,
+    };
+    let html = args.out.join(sweep::REPORT_HTML);
+    std::fs::write(&html, report.html()).with_context(|| format!("writing {}", html.display()))?;
+    println!(
+        "wrote {}, {} and {}, and each method's image at its largest budget",
+        csv_path.display(),
+        svg.display(),
+        png.display()
+    );
+    println!("report: {}", html.display());
     Ok(())
 }
 
-/// Renders every (method, budget) of a sweep on the workers at `addrs` and measures it.
+/// Renders every (method, budget) of a sweep on the workers at `addrs` and measures it; writes each method's
+/// image at the largest budget and its error map into the sweep's folder ([`sweep::write_images`]).
 async fn sweep_rows(
     args: &SweepArgs,
     base: &[String],
@@ -401,6 +420,7 @@ async fn sweep_rows(
     options: farm::Options,
 ) -> Result<Vec<sweep::Row>> {
     let mut rows = Vec::new();
+    let largest = args.budget.iter().copied().max().unwrap_or_default();
     for &method in &args.methods {
         for &b in &args.budget {
             let (settings, setting) = sweep::budget(method, b)?;
@@ -410,6 +430,9 @@ async fn sweep_rows(
                 .with_context(|| format!("rendering {method} at budget {b}"))?;
             let m = metrics::compare(&t.image, reference, None)
                 .with_context(|| format!("measuring {method} at budget {b} against {}", args.reference.display()))?;
+            if b == largest {
+                sweep::write_images(&args.out, method, &t.image, reference, scene.render.exposure)?;
+            }
             let row = sweep::Row {
                 method,
                 budget: b,

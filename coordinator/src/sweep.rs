@@ -3,14 +3,16 @@
 //!
 //! The pieces here are the ones worth testing without a renderer: how a budget multiplier becomes a method's
 //! setting ([`budget`], as `--set` pairs through [`crate::overrides`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
-//! for the equal-time and equal-error tables ([`error_at`], [`time_to`]), the CSV, and the chart
-//! ([`draw_charts`]). Renders go through the workers, as `render`'s do ([`render_timed`]).
+//! for the equal-time and equal-error tables ([`error_at`], [`time_to`], [`summaries`]), the CSV, the chart
+//! ([`draw_charts`]), each method's image and error map ([`write_images`]) and the HTML page that shows them all
+//! ([`Report`]). Renders go through the workers, as `render`'s do ([`render_timed`]).
 
 use crate::overrides::Setting;
 use anyhow::{Context, Result};
 use photon_core::image_io::Image;
 use photon_core::light::Light;
 use photon_core::material::Material;
+use photon_core::metrics;
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Integrator, Scene};
 use std::fmt::Write as _;
@@ -287,43 +289,241 @@ pub fn sig(x: f64) -> String {
     }
 }
 
-/// A Markdown table: the first column names methods, the others are `columns`, cells from `cell`.
-fn table(curves: &[Curve], corner: &str, columns: &[String], cell: impl Fn(&Curve, usize) -> String) -> String {
-    let mut s = format!("| {corner} |");
-    for c in columns {
-        let _ = write!(s, " {c} |");
+/// A table of the methods against a few columns: the equal-time and equal-error summaries, printed as Markdown
+/// ([`Table::markdown`]) and shown in the report as HTML ([`Table::html`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Table {
+    /// Headings and one row of cells per method.
+    Cells {
+        /// `method`, then one heading per column.
+        head: Vec<String>,
+        /// Per method its name, then its cells.
+        rows: Vec<Vec<String>>,
+    },
+    /// Why there is nothing to compare.
+    Empty(&'static str),
+}
+
+impl Table {
+    /// The methods of `curves` against `columns`, cells from `cell` (the curve and the column's index).
+    fn new(curves: &[Curve], columns: Vec<String>, cell: impl Fn(&Curve, usize) -> String) -> Table {
+        let rows = curves
+            .iter()
+            .map(|c| {
+                std::iter::once(c.method.name().to_owned()).chain((0..columns.len()).map(|i| cell(c, i))).collect()
+            })
+            .collect();
+        Table::Cells { head: [vec!["method".to_owned()], columns].concat(), rows }
     }
-    s.push_str("\n|---|");
-    s.push_str(&"---:|".repeat(columns.len()));
-    s.push('\n');
-    for c in curves {
-        let _ = write!(s, "| {} |", c.method);
-        for i in 0..columns.len() {
-            let _ = write!(s, " {} |", cell(c, i));
+
+    /// The table in Markdown (numbers right-aligned), or its reason in parentheses.
+    pub fn markdown(&self) -> String {
+        match self {
+            Table::Empty(why) => format!("({why})\n"),
+            Table::Cells { head, rows } => {
+                let line = |cells: &[String]| format!("| {} |\n", cells.join(" | "));
+                let rule = format!("|---|{}\n", "---:|".repeat(head.len().saturating_sub(1)));
+                [line(head), rule].into_iter().chain(rows.iter().map(|r| line(r))).collect()
+            }
         }
-        s.push('\n');
+    }
+
+    /// The table as an HTML `<table>`, or its reason as a `<p class="note">`; every text escaped.
+    pub fn html(&self) -> String {
+        match self {
+            Table::Empty(why) => format!("<p class=\"note\">{}</p>\n", escape(why)),
+            Table::Cells { head, rows } => {
+                let line = |tag: &str, cells: &[String]| {
+                    let cells: String = cells.iter().map(|c| format!("<{tag}>{}</{tag}>", escape(c))).collect();
+                    format!("<tr>{cells}</tr>\n")
+                };
+                let body: String = rows.iter().map(|r| line("td", r)).collect();
+                format!("<table>\n{}{body}</table>\n", line("th", head))
+            }
+        }
+    }
+}
+
+/// The equal-time table: each method's relMSE at times inside every method's range.
+pub fn equal_time(curves: &[Curve]) -> Table {
+    let times = common_times(curves, 4);
+    if times.is_empty() {
+        return Table::Empty("no time lies inside every method's measured range: widen --budget");
+    }
+    let columns = times.iter().map(|t| format!("relMSE at {} s", sig(*t))).collect();
+    Table::new(curves, columns, |c, i| error_at(c, times[i]).map_or_else(|| "—".into(), sig))
+}
+
+/// The equal-error table: seconds each method needs to reach a few relMSE levels.
+pub fn equal_error(curves: &[Curve]) -> Table {
+    let levels = error_levels(curves, 4);
+    if levels.is_empty() {
+        return Table::Empty("all errors are equal: no levels to compare");
+    }
+    let columns = levels.iter().map(|e| format!("s to relMSE {}", sig(*e))).collect();
+    Table::new(curves, columns, |c, i| time_to(c, levels[i]).map_or_else(|| "—".into(), sig))
+}
+
+/// The summaries of a sweep, each with its heading: [`equal_time`] and [`equal_error`].
+pub fn summaries(curves: &[Curve]) -> [(&'static str, Table); 2] {
+    [
+        ("equal time (relMSE, log-log interpolation)", equal_time(curves)),
+        ("equal error (seconds, log-log interpolation; — out of the measured range)", equal_error(curves)),
+    ]
+}
+
+/// The reference, tone-mapped, in the sweep's folder.
+pub const REFERENCE_PNG: &str = "reference.png";
+/// The report page in the sweep's folder ([`Report::html`]).
+pub const REPORT_HTML: &str = "report.html";
+
+/// The files, in the sweep's folder, of `method`'s image at its largest budget and of its error map:
+/// `METHOD.png` and `METHOD-error.png`.
+pub fn image_files(method: Integrator) -> [String; 2] {
+    [format!("{}.png", method.name()), format!("{}-error.png", method.name())]
+}
+
+/// Writes `image`, rendered with `method`, into `dir` under the names of [`image_files`]: tone-mapped with
+/// `exposure` as `render` writes a PNG, and the false-colour map of its relative error against `reference`
+/// ([`metrics::error_image`], as `compare --error-image` writes it).
+pub fn write_images(dir: &Path, method: Integrator, image: &Image, reference: &Image, exposure: f32) -> Result<()> {
+    let [picture, error] = image_files(method).map(|name| dir.join(name));
+    let map = metrics::error_image(image, reference)
+        .with_context(|| format!("mapping the error of {} against the reference", picture.display()))?;
+    image.write(&picture, exposure)?;
+    map.write(&error, 0.0)?;
+    Ok(())
+}
+
+/// Each method's row at its largest budget, in the order the methods first appear.
+pub fn largest_budgets(rows: &[Row]) -> Vec<&Row> {
+    let mut out: Vec<&Row> = Vec::new();
+    for r in rows {
+        match out.iter_mut().find(|o| o.method == r.method) {
+            Some(o) if o.budget < r.budget => *o = r,
+            Some(_) => {}
+            None => out.push(r),
+        }
+    }
+    out
+}
+
+/// `text` safe inside HTML text and quoted attribute values: `&`, `<`, `>`, `"` and `'` as character references.
+pub fn escape(text: &str) -> String {
+    let mut s = String::with_capacity(text.len());
+    for c in text.chars() {
+        match c {
+            '&' => s.push_str("&amp;"),
+            '<' => s.push_str("&lt;"),
+            '>' => s.push_str("&gt;"),
+            '"' => s.push_str("&quot;"),
+            '\'' => s.push_str("&#39;"),
+            c => s.push(c),
+        }
     }
     s
 }
 
-/// The equal-time table: each method's relMSE at times inside every method's range (Markdown).
-pub fn equal_time_table(curves: &[Curve]) -> String {
-    let times = common_times(curves, 4);
-    if times.is_empty() {
-        return "(no time lies inside every method's measured range: widen --budget)\n".into();
-    }
-    let columns: Vec<String> = times.iter().map(|t| format!("relMSE at {} s", sig(*t))).collect();
-    table(curves, "method", &columns, |c, i| error_at(c, times[i]).map_or_else(|| "—".into(), sig))
+/// A sweep as one HTML page ([`Report::html`]), beside its charts and images.
+#[derive(Clone, Copy, Debug)]
+pub struct Report<'a> {
+    /// The scene file, as given.
+    pub scene: &'a Path,
+    /// The reference image, as given.
+    pub reference: &'a Path,
+    /// Width and height of every image.
+    pub size: (u32, u32),
+    /// This machine's threads.
+    pub threads: usize,
+    /// The `--set` pairs of every render.
+    pub set: &'a [String],
+    /// The measured renders, in the order they ran.
+    pub rows: &'a [Row],
 }
 
-/// The equal-error table: seconds each method needs to reach a few relMSE levels (Markdown).
-pub fn equal_error_table(curves: &[Curve]) -> String {
-    let levels = error_levels(curves, 4);
-    if levels.is_empty() {
-        return "(all errors are equal: no levels to compare)\n".into();
+/// The style of the report page.
+const REPORT_CSS: &str = "body { font-family: sans-serif; margin: 2em; color: #222; max-width: 70em; }
+table { border-collapse: collapse; margin: 0.5em 0 1.5em; }
+th, td { border: 1px solid #bbb; padding: 0.2em 0.6em; }
+td + td { text-align: right; font-variant-numeric: tabular-nums; }
+.note { font-style: italic; }
+.grid { display: flex; flex-wrap: wrap; gap: 1.5em; align-items: flex-start; }
+figure { margin: 0; }
+figure img { display: block; max-width: 100%; height: auto; image-rendering: pixelated; margin-bottom: 0.3em; }
+figcaption { font-size: 0.9em; line-height: 1.4; }";
+
+impl Report<'_> {
+    /// The page: a title with the scene and size; the settings (reference, methods, budgets, `--set` pairs,
+    /// threads; no date, so the same sweep gives the same page but for its measured times); the chart
+    /// (`sweep.png`, linking `sweep.svg` and `sweep.csv`); the [`summaries`] as tables; the reference and each
+    /// method's image at its largest budget ([`largest_budgets`]) over its error map ([`image_files`]). Inline CSS,
+    /// no script, every image a file beside the page; all text from paths and settings is escaped.
+    pub fn html(&self) -> String {
+        let (w, h) = self.size;
+        let scene = escape(&self.scene.display().to_string());
+        let title = format!("Sweep of {scene} at {w}×{h}");
+        let mut s = format!(
+            "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n<title>{title}</title>\n\
+             <style>\n{REPORT_CSS}\n</style>\n</head>\n<body>\n<h1>{title}</h1>\n<ul>\n"
+        );
+        let mut methods: Vec<&str> = self.rows.iter().map(|r| r.method.name()).collect();
+        methods.dedup();
+        let mut budgets: Vec<u32> = self.rows.iter().map(|r| r.budget).collect();
+        budgets.sort_unstable();
+        budgets.dedup();
+        let budgets: Vec<String> = budgets.iter().map(u32::to_string).collect();
+        let set = if self.set.is_empty() { "none".to_owned() } else { self.set.join(", ") };
+        let settings = [
+            ("reference", self.reference.display().to_string()),
+            ("methods", methods.join(", ")),
+            ("budget multipliers", budgets.join(", ")),
+            ("settings (--set)", set),
+            ("threads on this machine", self.threads.to_string()),
+        ];
+        for (label, value) in settings {
+            let _ = writeln!(s, "<li>{label}: {}</li>", escape(&value));
+        }
+        s.push_str(
+            "</ul>\n<h2>Relative MSE against wall time</h2>\n<p><img src=\"sweep.png\" alt=\"relative MSE against \
+             wall seconds, one line per method\"></p>\n<p><a href=\"sweep.svg\">the chart as SVG</a> · \
+             <a href=\"sweep.csv\">the measurements as CSV</a></p>\n",
+        );
+        for (heading, table) in summaries(&curves(self.rows)) {
+            let _ = write!(s, "<h2>{}</h2>\n{}", escape(heading), table.html());
+        }
+        let _ = write!(
+            s,
+            "<h2>Images at each method's largest budget</h2>\n<p>Under each image, its relative error per pixel, \
+             |x − r| / (|r| + {}) averaged over the channels: black is 0, pale yellow 1 or more.</p>\n\
+             <div class=\"grid\">\n",
+            metrics::EPSILON
+        );
+        // Small images are shown enlarged to about 256 pixels wide, by a whole factor (crisp pixels).
+        let zoom = (256 / w.max(1)).max(1);
+        let img = |file: &str| {
+            let file = escape(file);
+            format!("<img src=\"{file}\" alt=\"{file}\" width=\"{}\" height=\"{}\">", w * zoom, h * zoom)
+        };
+        let reference = escape(&self.reference.display().to_string());
+        let _ = writeln!(s, "<figure>{}<figcaption>reference<br>{reference}</figcaption></figure>", img(REFERENCE_PNG));
+        for r in largest_budgets(self.rows) {
+            let [picture, error] = image_files(r.method);
+            let _ = writeln!(
+                s,
+                "<figure>{}{}<figcaption>{}, budget {} ({} {})<br>{} s, relMSE {}</figcaption></figure>",
+                img(&picture),
+                img(&error),
+                escape(r.method.name()),
+                r.budget,
+                r.setting.parameter,
+                r.setting.value,
+                sig(r.seconds),
+                sig(r.rel_mse)
+            );
+        }
+        s.push_str("</div>\n</body>\n</html>\n");
+        s
     }
-    let columns: Vec<String> = levels.iter().map(|e| format!("s to relMSE {}", sig(*e))).collect();
-    table(curves, "method", &columns, |c, i| time_to(c, levels[i]).map_or_else(|| "—".into(), sig))
 }
 
 /// Draws relMSE against seconds on log-log axes, one line per method, to `svg` and `png`, each with a title, axis
@@ -549,7 +749,7 @@ mod tests {
         assert_eq!(t.len(), 3);
         assert!((t[0] - 2.0).abs() < 1e-12 && (t[2] - 10.0).abs() < 1e-9);
         assert!(common_times(&[a, curve(&[(11.0, 1.0), (12.0, 0.5)])], 3).is_empty());
-        let table = equal_time_table(&[b]);
+        let table = equal_time(&[b]).markdown();
         assert_eq!(table.lines().count(), 3, "{table}");
     }
 
@@ -568,5 +768,96 @@ mod tests {
         assert_eq!(lines[0], CSV_HEADER);
         assert_eq!(lines.len(), 3);
         assert!(lines[1].starts_with("progressive,2,passes,8,1.5"), "{}", lines[1]);
+    }
+
+    fn row(method: Integrator, budget: u32, seconds: f64, rel_mse: f64) -> Row {
+        let setting = Budget { parameter: "spp", value: u64::from(4 * budget) };
+        Row { method, budget, setting, seconds, rmse: rel_mse.sqrt(), rel_mse }
+    }
+
+    /// Two methods whose time ranges overlap, so that both summaries have columns; progressive's rows out of
+    /// budget order.
+    fn two_methods() -> Vec<Row> {
+        vec![
+            row(Integrator::Path, 1, 1.0, 0.1),
+            row(Integrator::Path, 4, 4.0, 0.025),
+            row(Integrator::Progressive, 4, 8.0, 0.01),
+            row(Integrator::Progressive, 1, 2.0, 0.08),
+        ]
+    }
+
+    #[test]
+    fn the_largest_budget_is_found_whatever_the_order() {
+        let rows = two_methods();
+        let top: Vec<(Integrator, u32)> = largest_budgets(&rows).iter().map(|r| (r.method, r.budget)).collect();
+        assert_eq!(top, [(Integrator::Path, 4), (Integrator::Progressive, 4)]);
+    }
+
+    #[test]
+    fn html_tables_hold_the_cells_of_the_printed_ones() {
+        for (heading, table) in summaries(&curves(&two_methods())) {
+            let (md, html) = (table.markdown(), table.html());
+            assert_eq!(html.matches("<table>").count(), 1, "{heading}: {html}");
+            // Every cell of the Markdown table, headings and the method column included, is a cell of the HTML.
+            let cells: Vec<&str> =
+                md.lines().filter(|l| !l.starts_with("|---")).flat_map(|l| l.split('|')).map(str::trim).collect();
+            let cells: Vec<&str> = cells.into_iter().filter(|c| !c.is_empty()).collect();
+            assert_eq!(cells.len(), 3 * 5, "{heading}: {md}");
+            for c in cells {
+                assert!(html.contains(&format!(">{}</t", escape(c))), "{heading}: {c} missing from {html}");
+            }
+        }
+        let empty = equal_time(&[curve(&[(1.0, 1.0), (2.0, 0.5)]), curve(&[(3.0, 1.0), (4.0, 0.5)])]);
+        assert!(empty.markdown().starts_with("(no time"), "{}", empty.markdown());
+        assert!(empty.html().starts_with("<p class=\"note\">no time") && !empty.html().contains("<table>"));
+    }
+
+    #[test]
+    fn the_report_escapes_text_from_file_names() {
+        let rows = two_methods();
+        let set = ["camera.fov=<30>".to_owned()];
+        let report = Report {
+            scene: Path::new("scenes/<script>alert('x')</script>.toml"),
+            reference: Path::new("refs/a&b\".exr"),
+            size: (12, 8),
+            threads: 2,
+            set: &set,
+            rows: &rows,
+        };
+        let html = report.html();
+        assert!(!html.contains("<script") && !html.contains("alert('x')"), "{html}");
+        assert!(html.contains("<title>Sweep of scenes/&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;.toml at 12×8"));
+        assert!(html.contains("refs/a&amp;b&quot;.exr") && html.contains("camera.fov=&lt;30&gt;"), "{html}");
+        assert!(html.contains("<li>threads on this machine: 2</li>"), "{html}");
+        assert_eq!(html.matches("<table>").count(), 2, "{html}");
+        assert!(html.contains("<img src=\"sweep.png\"") && html.contains("href=\"sweep.svg\""), "{html}");
+        // The reference first, then each method's image over its error map, at the largest budget; 12 pixels
+        // wide shows 21 times larger.
+        let srcs: Vec<&str> = html.split("<img src=\"").skip(2).filter_map(|s| s.split('"').next()).collect();
+        assert_eq!(srcs, [REFERENCE_PNG, "path.png", "path-error.png", "progressive.png", "progressive-error.png"]);
+        assert!(html.contains("width=\"252\" height=\"168\""), "{html}");
+        assert!(html.contains("progressive, budget 4 (spp 16)<br>8.000 s, relMSE 0.01000"), "{html}");
+        assert!(!html.contains("budget 1 "), "{html}");
+    }
+
+    #[test]
+    fn images_and_error_maps_are_written_as_pngs() {
+        let dir = std::env::temp_dir().join(format!("photon-sweep-images-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let reference = Image { width: 4, height: 3, pixels: (0..36).map(|i| i as f32 / 36.0).collect() };
+        let mut image = reference.clone();
+        image.pixels[5] += 0.3;
+        write_images(&dir, Integrator::FinalGather, &image, &reference, 1.0).unwrap();
+        let [picture, error] = image_files(Integrator::FinalGather);
+        assert_eq!((picture.as_str(), error.as_str()), ("final-gather.png", "final-gather-error.png"));
+        let read = |name: &str| image::open(dir.join(name)).unwrap().into_rgb8();
+        let png = read(&picture);
+        assert_eq!((png.width(), png.height(), png.into_raw()), (4, 3, image.to_srgb8(1.0)));
+        let map = read(&error);
+        assert_eq!(map.into_raw(), metrics::error_image(&image, &reference).unwrap().to_srgb8(0.0));
+        let small = Image::new(2, 2);
+        let e = write_images(&dir, Integrator::Path, &small, &reference, 0.0).unwrap_err();
+        assert!(format!("{e:#}").contains("path.png") && format!("{e:#}").contains("2x2"), "{e:#}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -1,12 +1,16 @@
 //! `photon-coordinator reference` and `sweep` end to end on a 12×12 Cornell box: the reference is a path-traced
 //! EXR; the sweep, on two loopback worker processes, writes one CSV row per method and budget with finite
-//! values, each method's error falls at every step of a 4× budget, and both charts are written.
+//! values, each method's error falls at every step of a 4× budget, both charts are written, and report.html
+//! shows the summaries as tables and the reference and each method's image over its error map, PNGs of the
+//! sweep's size.
 #![allow(clippy::unwrap_used)]
 
+use photon_core::image_io::Image;
 use photon_tests::{coordinator, scenes_dir, temp_dir};
+use std::path::Path;
 use std::process::{Command, Output};
 
-fn run(dir: &std::path::Path, args: &[&str]) -> Output {
+fn run(dir: &Path, args: &[&str]) -> Output {
     let out = Command::new(coordinator()).current_dir(dir).args(args).output().unwrap();
     assert!(
         out.status.success(),
@@ -70,6 +74,24 @@ fn reference_then_sweep_writes_a_falling_csv_and_charts() {
     }
     let svg = std::fs::read_to_string(dir.join("out/sweep.svg")).unwrap();
     assert!(svg.contains("progressive") && svg.contains("relative MSE"), "the SVG lacks its legend or labels");
+
+    let report = Path::new("out").join("report.html");
+    assert_eq!(stdout.lines().last(), Some(format!("report: {}", report.display()).as_str()), "{stdout}");
+    let html = std::fs::read_to_string(dir.join(&report)).unwrap();
+    // One HTML table per printed table; a summary without columns prints its reason, and the page says it too.
+    let printed = stdout.lines().filter(|l| l.starts_with("| method |")).count();
+    assert_eq!(html.matches("<table>").count(), printed, "{html}");
+    assert_eq!(printed + html.matches("<p class=\"note\">").count(), 2, "{html}");
+    assert!(html.contains("<img src=\"sweep.png\"") && html.contains("href=\"sweep.svg\""), "{html}");
+    for name in ["reference.png", "path.png", "path-error.png", "progressive.png", "progressive-error.png"] {
+        assert!(html.contains(&format!("<img src=\"{name}\"")), "{name} is not shown: {html}");
+        let path = dir.join("out").join(name);
+        let bytes = std::fs::read(&path).unwrap();
+        assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "{name} is not a PNG");
+        let image = Image::read(&path).unwrap();
+        assert_eq!((image.width, image.height), (12, 12), "{name}");
+    }
+    assert!(html.contains("progressive, budget 16 (passes 64)"), "{html}");
 }
 
 #[test]
