@@ -197,6 +197,8 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         deadline: args.time.map(|t| t0 + t),
         target_error: args.target_error,
         bias_alpha: progressive.then_some(r.photons.alpha),
+        passes: None,
+        estimate: false,
     }))
 }
 
@@ -440,15 +442,17 @@ async fn sweep_rows(
                 seconds: t.prepare_s + t.render_s,
                 rmse: m.rmse,
                 rel_mse: m.rel_mse,
+                estimated_rel_mse: t.estimated_rel_mse,
             };
             println!(
-                "  {:<13} b={:<4} {:<16} {:>8.3} s  rmse {:<10} relMSE {}",
+                "  {:<13} b={:<4} {:<16} {:>8.3} s  rmse {:<10} relMSE {}{}",
                 method.name(),
                 b,
                 format!("{}={}", row.setting.parameter, row.setting.value),
                 row.seconds,
                 sig(row.rmse),
-                sig(row.rel_mse)
+                sig(row.rel_mse),
+                row.estimated_rel_mse.map(|e| format!(" (estimated {})", sig(e))).unwrap_or_default()
             );
             rows.push(row);
         }

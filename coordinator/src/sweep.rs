@@ -111,28 +111,47 @@ pub struct Timed {
     pub prepare_s: f64,
     /// Seconds to render the pixels.
     pub render_s: f64,
+    /// The relative MSE the render estimated of itself without a reference ([`crate::bounded`]): `path`,
+    /// `direct` and `progressive`.
+    pub estimated_rel_mse: Option<f64>,
 }
 
 /// Prepares `scene` here (no prepared-blob cache: its time is part of the method's cost) and renders it on the
 /// workers at `addrs`, as `render` does. The render time runs from the first connection to the last strip, so it
 /// includes shipping the blobs (workers that already hold them are sent nothing).
+///
+/// `path`, `direct` and `progressive` render their samples (passes) in rounds of whole-image blocks that
+/// estimate their own error ([`crate::bounded`]); the image is the same, bit for bit, as in strips.
 pub async fn render_timed(
     scene: &Scene,
     scene_path: &Path,
     addrs: &[crate::session::WorkerAddr],
-    options: crate::farm::Options,
+    mut options: crate::farm::Options,
 ) -> Result<Timed> {
     let t0 = Instant::now();
     let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
     let (width, height) = (prep.camera.width, prep.camera.height);
     let (scene_blob, photons, frame) = (prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?);
-    let job = crate::job::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
+    let mut job = crate::job::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
+    let r = &prep.settings;
+    let estimated = match r.integrator {
+        Integrator::Path | Integrator::Direct => Some((r.spp, None)),
+        Integrator::Progressive => Some((r.photons.passes, Some(r.photons.alpha))),
+        Integrator::PhotonMap | Integrator::FinalGather => None,
+    };
+    if let Some((passes, bias_alpha)) = estimated {
+        job.passes = Some(passes.max(1));
+        let passes = Some(passes.max(1));
+        options.bound =
+            Some(crate::bounded::Bound { deadline: None, target_error: None, bias_alpha, passes, estimate: true });
+    }
     drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let outcome = crate::farm::render(&job, addrs, options).await?;
     let render_s = t1.elapsed().as_secs_f64();
-    Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s })
+    let estimated_rel_mse = outcome.bounded.and_then(|b| b.rel_mse_estimate);
+    Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s, estimated_rel_mse })
 }
 
 /// One measured render of the sweep.
@@ -150,10 +169,12 @@ pub struct Row {
     pub rmse: f64,
     /// Relative MSE against the reference.
     pub rel_mse: f64,
+    /// The relative MSE the render estimated without the reference, for the methods that estimate it.
+    pub estimated_rel_mse: Option<f64>,
 }
 
 /// The CSV header of [`csv`].
-pub const CSV_HEADER: &str = "method,budget,parameter,value,seconds,rmse,rel_mse";
+pub const CSV_HEADER: &str = "method,budget,parameter,value,seconds,rmse,rel_mse,estimated_rel_mse";
 
 /// The rows as CSV with a header line.
 pub fn csv(rows: &[Row]) -> String {
@@ -161,8 +182,15 @@ pub fn csv(rows: &[Row]) -> String {
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{},{:.6},{:.6e},{:.6e}",
-            r.method, r.budget, r.setting.parameter, r.setting.value, r.seconds, r.rmse, r.rel_mse
+            "{},{},{},{},{:.6},{:.6e},{:.6e},{}",
+            r.method,
+            r.budget,
+            r.setting.parameter,
+            r.setting.value,
+            r.seconds,
+            r.rmse,
+            r.rel_mse,
+            r.estimated_rel_mse.map(|e| format!("{e:.6e}")).unwrap_or_default()
         );
     }
     s
@@ -510,7 +538,7 @@ impl Report<'_> {
             let [picture, error] = image_files(r.method);
             let _ = writeln!(
                 s,
-                "<figure>{}{}<figcaption>{}, budget {} ({} {})<br>{} s, relMSE {}</figcaption></figure>",
+                "<figure>{}{}<figcaption>{}, budget {} ({} {})<br>{} s, relMSE {}{}</figcaption></figure>",
                 img(&picture),
                 img(&error),
                 escape(r.method.name()),
@@ -518,7 +546,8 @@ impl Report<'_> {
                 r.setting.parameter,
                 r.setting.value,
                 sig(r.seconds),
-                sig(r.rel_mse)
+                sig(r.rel_mse),
+                r.estimated_rel_mse.map(|e| format!(" (estimated {})", sig(e))).unwrap_or_default()
             );
         }
         s.push_str("</div>\n</body>\n</html>\n");
@@ -762,17 +791,19 @@ mod tests {
             seconds: 1.5,
             rmse: 0.25,
             rel_mse: 0.125,
+            estimated_rel_mse: Some(0.1),
         };
         let s = csv(&[row.clone(), row]);
         let lines: Vec<&str> = s.lines().collect();
         assert_eq!(lines[0], CSV_HEADER);
         assert_eq!(lines.len(), 3);
         assert!(lines[1].starts_with("progressive,2,passes,8,1.5"), "{}", lines[1]);
+        assert!(lines[1].ends_with(",1.000000e-1"), "{}", lines[1]);
     }
 
     fn row(method: Integrator, budget: u32, seconds: f64, rel_mse: f64) -> Row {
         let setting = Budget { parameter: "spp", value: u64::from(4 * budget) };
-        Row { method, budget, setting, seconds, rmse: rel_mse.sqrt(), rel_mse }
+        Row { method, budget, setting, seconds, rmse: rel_mse.sqrt(), rel_mse, estimated_rel_mse: None }
     }
 
     /// Two methods whose time ranges overlap, so that both summaries have columns; progressive's rows out of

@@ -42,7 +42,10 @@ fn no_nan_inf_or_negative_pixel() {
             // find it (a delta light behind a delta surface), so direct lighting and the path tracer see black
             // there; the photon methods see it (the stress suite's point).
             let camera_only = matches!(integrator, Integrator::Direct | Integrator::Path);
-            if !(camera_only && path.ends_with("light-in-glass.toml")) {
+            // A gather radius of 0.0005 in a map of 5 000 photons finds none from 240 samples: the photon map
+            // seen directly is rightly black at this size (the stress suite renders it at full size).
+            let no_gather = integrator == Integrator::PhotonMap && path.ends_with("small-radius.toml");
+            if !(camera_only && path.ends_with("light-in-glass.toml")) && !no_gather {
                 assert!(img.pixels.iter().any(|&v| v > 0.0), "{}: {integrator}: black image", path.display());
             }
         }

@@ -2,7 +2,8 @@
 //! radiance 1 on both sides and reflects nothing. Glass absorbs nothing, so every camera path leaves the mesh
 //! with its throughput intact and every pixel is 1. A cube from an OBJ without normals, with the default crease
 //! angle (its 90° edges stay sharp), flat, and smoothed across its edges (corner normals 35° to 55° off the
-//! faces), and an icosphere with smooth normals: every pixel 1 within 1 %. Before the crease angle, the loader
+//! faces; there one sample in a pixel may circle until `max_depth`, see the test), and an icosphere with smooth
+//! normals: every pixel 1 within 1 %. Before the crease angle, the loader
 //! smoothed the cube across its edges, and glass dropped every sample that the shading normal sent to the
 //! wrong side of the surface: 0.882 in this view, with pixels at 0 (the icosphere: 0.9987, pixels off by 12 %).
 
@@ -71,10 +72,16 @@ material = "glass"
 }
 
 fn check(name: &str, pixels: &[f32]) {
+    check_within(name, pixels, 0.01);
+}
+
+/// Every pixel within `tolerance` of 1, and the mean within 0.1 %.
+fn check_within(name: &str, pixels: &[f32], tolerance: f64) {
     let mean = pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / pixels.len() as f64;
     let worst = pixels.iter().map(|&v| (f64::from(v) - 1.0).abs()).fold(0.0, f64::max);
     eprintln!("{name}: mean {mean:.5}, largest |pixel − 1| {worst:.5}");
-    assert!(worst < 0.01, "{name}: a pixel is {worst} away from 1 (mean {mean})");
+    assert!(worst < tolerance, "{name}: a pixel is {worst} away from 1 (mean {mean})");
+    assert!((mean - 1.0).abs() < 1e-3, "{name}: mean {mean}");
 }
 
 fn cube_file() -> PathBuf {
@@ -101,6 +108,14 @@ fn glass_icosphere_with_smooth_normals() {
 
 #[test]
 fn glass_cube_smoothed_across_its_edges() {
-    // Normals averaged over all three faces at each corner tilt 35° to 55° off the faces.
-    check("cube, crease 180°", &furnace("cube-180", &cube_file(), "crease_angle = 180.0", ""));
+    // Normals averaged over all three faces at each corner tilt 35° to 55° off the faces. Opposite faces' shading
+    // normals are then no longer parallel, and a path can be caught in a closed orbit of total internal
+    // reflections between four faces that no real cube has: sample 0 of pixel (8, 22) circles until the 200
+    // bounces of `max_depth` end it (with 5 000 it circles still). Such a truncated path is the one loss allowed:
+    // one sample of the pixel's 16, never a sample dropped at a surface.
+    check_within(
+        "cube, crease 180°",
+        &furnace("cube-180", &cube_file(), "crease_angle = 180.0", ""),
+        1.0 / 16.0 + 0.01,
+    );
 }

@@ -51,11 +51,12 @@ fn reference_then_sweep_writes_a_falling_csv_and_charts() {
 
     let csv = std::fs::read_to_string(dir.join("out/sweep.csv")).unwrap();
     let mut lines = csv.lines();
-    assert_eq!(lines.next(), Some("method,budget,parameter,value,seconds,rmse,rel_mse"));
+    assert_eq!(lines.next(), Some("method,budget,parameter,value,seconds,rmse,rel_mse,estimated_rel_mse"));
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert_eq!(rows.len(), 6, "{csv}");
     for r in &rows {
-        assert_eq!(r.len(), 7, "{r:?}");
+        assert_eq!(r.len(), 8, "{r:?}");
+        // Both methods estimate their own error without the reference.
         for v in &r[4..] {
             let x: f64 = v.parse().unwrap();
             assert!(x.is_finite() && x >= 0.0, "{r:?}");
@@ -67,6 +68,8 @@ fn reference_then_sweep_writes_a_falling_csv_and_charts() {
         assert_eq!(rel.iter().map(|r| r.0).collect::<Vec<_>>(), [1, 4, 16], "{method}: {rel:?}");
         // Each 4× budget must lower the error: a curve that rises anywhere is a bug, not noise, at these ratios.
         assert!(rel[1].1 < rel[0].1 && rel[2].1 < rel[1].1, "{method}: relMSE did not fall at every step: {rel:?}");
+        let estimated: Vec<f64> = rows.iter().filter(|r| r[0] == method).map(|r| r[7].parse().unwrap()).collect();
+        assert!(estimated[2] < estimated[0], "{method}: the estimate did not fall from budget 1 to 16: {estimated:?}");
     }
     for chart in ["sweep.svg", "sweep.png"] {
         let len = std::fs::metadata(dir.join("out").join(chart)).unwrap().len();
