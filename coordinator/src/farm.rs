@@ -61,6 +61,8 @@ pub struct Options {
     pub interrupt: Option<Interrupts>,
     /// How long the render waits, once no worker is left, for a lost one to come back before it gives up.
     pub rejoin_patience: Duration,
+    /// Where the render's state is published for the live page (`render --serve`), if anywhere.
+    pub live: Option<std::sync::Arc<crate::live::Board>>,
 }
 
 /// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
@@ -77,6 +79,7 @@ impl Default for Options {
             progress: false,
             interrupt: None,
             rejoin_patience: REJOIN_PATIENCE,
+            live: None,
         }
     }
 }
@@ -167,6 +170,7 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
         }
         farm.print_warnings();
         farm.fill_slots();
+        farm.publish(false);
     };
     farm.finish(result, sessions)
 }
@@ -269,6 +273,8 @@ struct Farm<'a> {
     none_active_since: Option<Duration>,
     /// The signal that asked to stop, once one has.
     interrupted: Option<Interrupt>,
+    /// The live page's board ([`Options::live`]).
+    live: Option<std::sync::Arc<crate::live::Board>>,
 }
 
 impl<'a> Farm<'a> {
@@ -332,6 +338,7 @@ impl<'a> Farm<'a> {
             rejoin_patience: options.rejoin_patience,
             none_active_since: None,
             interrupted: None,
+            live: options.live.clone(),
         };
         if let Some(p) = &options.resume {
             farm.resume(p)?;
@@ -630,6 +637,7 @@ impl<'a> Farm<'a> {
     fn finish(mut self, result: Result<(), Stop>, sessions: Vec<JoinHandle<()>>) -> Result<Outcome, FarmError> {
         self.bar.finish_and_clear();
         self.cancel(self.tasks.keys().copied().collect::<Vec<_>>());
+        self.publish(true);
         for s in sessions {
             s.abort();
         }
@@ -762,6 +770,51 @@ impl<'a> Farm<'a> {
                 }
             })
             .collect()
+    }
+
+    /// Publishes the render's state to the live page, if there is one: at most every
+    /// [`crate::live::PUBLISH_EVERY`] unless `force`, with the image only when a unit was finished since.
+    fn publish(&mut self, force: bool) {
+        use crate::live::{self, LiveStatus, LiveWorker, Preview};
+        let Some(board) = self.live.as_deref().filter(|b| b.due(force)) else { return };
+        let (done, total) = self.sched.progress();
+        let (job, passes_done) = (self.job, self.done_rows.iter().map(|(a, b)| b - a).sum::<u32>());
+        let preview = board.wants_preview(done).then(|| {
+            let (pixels, gain) = match (&self.passes, job.passes) {
+                (Some(acc), Some(all)) => (acc.image(), all as f32 / passes_done.max(1) as f32),
+                _ => (self.image.clone(), 1.0),
+            };
+            Preview { image: photon_core::image_io::Image { width: job.width, height: job.height, pixels }, gain }
+        });
+        let workers = (self.reports().into_iter().zip(&self.members).enumerate())
+            .map(|(i, (r, m))| LiveWorker {
+                state: live::worker_state(m.out.as_deref(), self.sched.worker_stats(WorkerId(i as u32))),
+                in_flight: self.sched.in_flight(WorkerId(i as u32)).len(),
+                address: r.name,
+                platform: r.platform,
+                threads: r.threads,
+                strips: r.strips,
+                mpix_per_s: r.mpix_per_s,
+                shipped_bytes: r.shipped_bytes,
+                fetched_bytes: r.fetched_bytes,
+            })
+            .collect();
+        let render_s = self.first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        let status = LiveStatus {
+            elapsed_s: self.t0.elapsed().as_secs_f64(),
+            eta_s: live::eta_s(render_s, done - self.resumed.min(done), total - done),
+            units: if self.passes.is_some() { "pass blocks" } else { "strips" }.into(),
+            done,
+            total,
+            unit_states: live::unit_states(&self.sched),
+            workers,
+            photon_paths: self.photon_paths,
+            photon_blob_bytes: job.photons_blob.as_ref().and_then(|id| job.blobs.get(id)).map_or(0, |b| b.len() as u64),
+            width: job.width,
+            height: job.height,
+            ..LiveStatus::default()
+        };
+        board.publish(status, preview);
     }
 }
 
