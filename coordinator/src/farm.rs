@@ -786,20 +786,23 @@ impl<'a> Farm<'a> {
             };
             Preview { image: photon_core::image_io::Image { width: job.width, height: job.height, pixels }, gain }
         });
+        let render_s = self.first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        // Pixels of one scheduler "row": a row of the image, or a pass over all of it.
+        let px = f64::from(job.width) * if self.passes.is_some() { f64::from(job.height) } else { 1.0 };
         let workers = (self.reports().into_iter().zip(&self.members).enumerate())
             .map(|(i, (r, m))| LiveWorker {
                 state: live::worker_state(m.out.as_deref(), self.sched.worker_stats(WorkerId(i as u32))),
                 in_flight: self.sched.in_flight(WorkerId(i as u32)).len(),
+                mpix_per_s: self.sched.worker_stats(WorkerId(i as u32)).map_or(0.0, |s| s.rows as f64 * px / 1e6)
+                    / render_s.max(1e-3),
                 address: r.name,
                 platform: r.platform,
                 threads: r.threads,
                 strips: r.strips,
-                mpix_per_s: r.mpix_per_s,
                 shipped_bytes: r.shipped_bytes,
                 fetched_bytes: r.fetched_bytes,
             })
             .collect();
-        let render_s = self.first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
         let status = LiveStatus {
             elapsed_s: self.t0.elapsed().as_secs_f64(),
             eta_s: live::eta_s(render_s, done - self.resumed.min(done), total - done),

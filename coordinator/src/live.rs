@@ -116,7 +116,8 @@ pub struct LiveWorker {
     pub strips: u32,
     /// Units it holds now.
     pub in_flight: usize,
-    /// Megapixels of accepted units per busy second (a pass block counts its passes times the image's pixels).
+    /// Megapixels of its accepted units per second since the first worker was ready (a pass block counts its
+    /// passes times the image's pixels).
     pub mpix_per_s: f64,
     /// Blob bytes shipped to it from the coordinator.
     pub shipped_bytes: u64,
