@@ -773,13 +773,14 @@ impl<'a> Farm<'a> {
     }
 
     /// Publishes the render's state to the live page, if there is one: at most every
-    /// [`crate::live::PUBLISH_EVERY`] unless `force`, with the image only when a unit was finished since.
+    /// [`crate::live::PUBLISH_EVERY`] unless `force`, with the image when a unit was finished since and someone
+    /// looks (or it is the final state).
     fn publish(&mut self, force: bool) {
         use crate::live::{self, LiveStatus, LiveWorker, Preview};
         let Some(board) = self.live.as_deref().filter(|b| b.due(force)) else { return };
         let (done, total) = self.sched.progress();
         let (job, passes_done) = (self.job, self.done_rows.iter().map(|(a, b)| b - a).sum::<u32>());
-        let preview = board.wants_preview(done).then(|| {
+        let preview = board.wants_preview(done, force).then(|| {
             let (pixels, gain) = match (&self.passes, job.passes) {
                 (Some(acc), Some(all)) => (acc.image(), all as f32 / passes_done.max(1) as f32),
                 _ => (self.image.clone(), 1.0),

@@ -35,6 +35,13 @@ pub const DEFAULT_ADDR: &str = "127.0.0.1:8080";
 /// The shortest interval between two publishes that are not forced.
 pub const PUBLISH_EVERY: Duration = Duration::from_millis(500);
 
+/// How long after the last request for `/preview.png` the farm still hands its image over.
+pub const PREVIEW_IDLE: Duration = Duration::from_secs(10);
+
+/// How long a request for `/preview.png` waits for the farm's image when there is none yet: a little more than
+/// [`PUBLISH_EVERY`] and the farm loop's 250 ms tick.
+pub const PREVIEW_WAIT: Duration = Duration::from_millis(1500);
+
 /// The page, built into the binary.
 pub const PAGE: &str = include_str!("live.html");
 
@@ -171,6 +178,8 @@ struct Inner {
     /// The PNG of `image`, once a request asked for it.
     png: Option<Bytes>,
     last_publish: Option<Instant>,
+    /// When `/preview.png` was last asked for.
+    last_asked: Option<Instant>,
 }
 
 impl Board {
@@ -189,9 +198,13 @@ impl Board {
         force || self.lock().last_publish.is_none_or(|t| t.elapsed() >= PUBLISH_EVERY)
     }
 
-    /// Whether the preview is older than a state with `done` units finished (or there is none yet).
-    pub fn wants_preview(&self, done: usize) -> bool {
-        self.lock().image.as_ref().is_none_or(|i| i.1 != done)
+    /// Whether a publish of a state with `done` units finished should carry the image: when the preview is older
+    /// (or there is none yet), and either `force` (the final state) or someone asked for the preview in the last
+    /// [`PREVIEW_IDLE`]. Copying a large image twice a second costs the farm's loop milliseconds: not for nobody.
+    pub fn wants_preview(&self, done: usize, force: bool) -> bool {
+        let inner = self.lock();
+        let stale = inner.image.as_ref().is_none_or(|i| i.1 != done);
+        stale && (force || inner.last_asked.is_some_and(|t| t.elapsed() < PREVIEW_IDLE))
     }
 
     /// Publishes a new state, with the image so far when it changed (`None` keeps the last one). The error
@@ -235,12 +248,14 @@ impl Board {
         self.lock().status.clone()
     }
 
-    /// The preview as PNG bytes, with the units finished in it; `None` before the first image. Encodes (outside
-    /// the board's lock, so the farm is never held up) only when the image changed since the last call.
+    /// The preview as PNG bytes, with the units finished in it; `None` before the first image (the farm hands one
+    /// over at its next publish, now that it was asked for). Encodes (outside the board's lock, so the farm is
+    /// never held up) only when the image changed since the last call.
     pub fn preview_png(&self) -> Result<Option<Png>, image::ImageError> {
         let _one_at_a_time = self.encoding.lock().unwrap_or_else(PoisonError::into_inner);
         let image = {
-            let inner = self.lock();
+            let mut inner = self.lock();
+            inner.last_asked = Some(Instant::now());
             match (&inner.image, &inner.png) {
                 (None, _) => return Ok(None),
                 (Some(i), Some(png)) => return Ok(Some(Png { bytes: png.clone(), done: i.1 })),
@@ -380,9 +395,17 @@ async fn preview(State(app): State<App>, headers: HeaderMap) -> Response {
     if !app.authorized(&headers) {
         return unauthorized();
     }
-    let board = app.board.clone();
-    // Encoding takes milliseconds to a few hundred for a large image: off the async threads.
-    match tokio::task::spawn_blocking(move || board.preview_png()).await {
+    // Encoding takes milliseconds to a few hundred for a large image: off the async threads. The first ask may
+    // find no image (the farm hands it over at its next publish, once asked): wait for it a little.
+    let deadline = Instant::now() + PREVIEW_WAIT;
+    let png = loop {
+        let board = app.board.clone();
+        match tokio::task::spawn_blocking(move || board.preview_png()).await {
+            Ok(Ok(None)) if Instant::now() < deadline => tokio::time::sleep(Duration::from_millis(50)).await,
+            other => break other,
+        }
+    };
+    match png {
         Ok(Ok(Some(Png { bytes, done }))) => {
             let kind = HeaderValue::from_static("image/png");
             let done = (header::HeaderName::from_static("x-photon-done"), HeaderValue::from(done));
@@ -579,6 +602,12 @@ mod tests {
         assert_eq!(decoded.dimensions(), (4, 8));
         // 0.5 linear is 188 in sRGB.
         assert_eq!(decoded.get_pixel(0, 0).0, [188, 188, 188]);
+        // Nobody asked for the preview since this board was made with an image... until now.
+        let fresh = Board::new(0.0);
+        assert!(!fresh.wants_preview(1, false) && fresh.wants_preview(1, true));
+        assert!(fresh.preview_png().unwrap().is_none());
+        assert!(fresh.wants_preview(1, false), "asked for: the next publish carries the image");
+        assert!(!board.wants_preview(1, false) && board.wants_preview(2, false), "the image of 1 unit is there");
         let first = board.preview_png().unwrap().unwrap().bytes;
         let again = board.preview_png().unwrap().unwrap().bytes;
         assert_eq!(first.as_ptr(), again.as_ptr(), "encoded again for the same state");
