@@ -203,11 +203,13 @@ fn serve_after_keeps_the_final_state_up_until_ctrl_c() {
     let render = Running::start(&mut cmd);
     render.wait_for_line("until Ctrl-C", 1, LIMIT);
     let s = wait_for_status(&page, "the render finished", |s| s["finished"] == true);
-    assert_eq!(s["done"], s["total"], "{s}");
-    assert_eq!(s["eta_s"].as_f64(), Some(0.0));
-    assert_eq!(http_get(&page, "/preview.png").map(|r| r.0), Some(200));
+    let preview = http_get(&page, "/preview.png").map(|r| r.0);
+    // Stopped before anything is asserted, so that a failed check leaves no process behind.
     assert!(render.signal("INT"));
     let o = render.finish(LIMIT);
+    assert_eq!(s["done"], s["total"], "{s}");
+    assert_eq!(s["eta_s"].as_f64(), Some(0.0));
+    assert_eq!(preview, Some(200));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(dir.join("out.png").is_file());
 }
