@@ -170,6 +170,11 @@ impl Rounds {
         RoundPlan { passes, per_block: 1 }
     }
 
+    /// Time left before the deadline, if there is one.
+    pub fn remaining(&self) -> Option<Duration> {
+        self.bound.deadline.map(|d| d.saturating_duration_since(Instant::now()))
+    }
+
     /// Passes of the completed rounds.
     pub fn passes(&self) -> u32 {
         self.ends.last().copied().unwrap_or(0)

@@ -103,6 +103,16 @@ pub(crate) struct RenderArgs {
     /// chooses per job; the summary line says which and what it modelled).
     #[arg(long, value_enum, default_value_t = crate::delivery::MapDelivery::Auto)]
     pub(crate) photon_maps: crate::delivery::MapDelivery,
+    /// Serve a live web page of the render at ADDR while it runs (default 127.0.0.1:8080): the image as it fills
+    /// in, the strips done and in flight, the workers, progress, the time left and the photon statistics;
+    /// `/api/status` has the same as JSON. With a farm token, the page and the JSON want it
+    /// (`Authorization: Bearer`).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::live::DEFAULT_ADDR,
+          value_parser = parse_serve_addr)]
+    pub(crate) serve: Option<std::net::SocketAddr>,
+    /// Keep the live page up after the render, showing the final state, until Ctrl-C.
+    #[arg(long, requires = "serve")]
+    pub(crate) serve_after: bool,
 }
 
 impl RenderArgs {
@@ -280,6 +290,9 @@ pub enum ValueError {
     /// A size of 0 or above 65536.
     #[error("expected WIDTHxHEIGHT with sizes in 1..=65536, found `{0}`")]
     SizeRange(String),
+    /// Not an address to listen on.
+    #[error("expected HOST:PORT to serve the live page on, e.g. 127.0.0.1:8080, found `{0}`")]
+    ServeAddr(String),
 }
 
 /// A region `X0,Y0,X1,Y1` of `--region`.
@@ -304,4 +317,13 @@ pub fn parse_size(s: &str) -> Result<(u32, u32), ValueError> {
         (Some(w), Some(h)) => Ok((w, h)),
         _ => Err(ValueError::SizeRange(s.to_owned())),
     }
+}
+
+/// The address `ADDR` of `--serve`: `IP:PORT`, or `NAME:PORT` resolved now (the first address it names).
+pub fn parse_serve_addr(s: &str) -> Result<std::net::SocketAddr, ValueError> {
+    use std::net::ToSocketAddrs;
+    if let Ok(addr) = s.parse() {
+        return Ok(addr);
+    }
+    s.to_socket_addrs().ok().and_then(|mut a| a.next()).ok_or_else(|| ValueError::ServeAddr(s.to_owned()))
 }

@@ -6,6 +6,7 @@ use crate::delivery::{self, MapDelivery};
 use crate::farm::{self, FarmError};
 use crate::fleet;
 use crate::job::{Partial, partial_path, prepare_job};
+use crate::live::{self, Board};
 use crate::overrides::{self, Setting};
 use crate::prepared_cache::PreparedCache;
 use crate::report::{Summary, print_workers};
@@ -16,6 +17,7 @@ use photon_core::metrics::{self, Metrics};
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Integrator, Scene};
 use std::path::Path;
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Runs a parsed command line.
@@ -56,6 +58,16 @@ fn render(args: RenderArgs) -> Result<()> {
     // the partial file is written. The workers start (and remote ones are asked their threads) before
     // preparing: how they get the photon maps depends on them.
     let rt = runtime()?;
+    // The page is up before the workers start, so that an address in use fails at once.
+    let live = match args.serve {
+        Some(addr) => {
+            let board = Arc::new(Board::new(scene.render.exposure));
+            let server = rt.block_on(live::serve(addr, board.clone(), token.as_deref()))?;
+            eprintln!("live page: http://{}/", server.addr());
+            Some((board, server))
+        }
+        None => None,
+    };
     let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
     // The model's view of the workers is needed only when it chooses (a forced mode ignores it).
     let model_farm = if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
@@ -77,14 +89,16 @@ fn render(args: RenderArgs) -> Result<()> {
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
 
+    let mut interrupts = rt.block_on(async { crate::interrupt::watch_signals() });
     let options = farm::Options {
         token,
         tls_ca,
         rows_per_strip: args.rows_per_strip,
         resume,
         progress: !args.quiet,
-        interrupt: Some(rt.block_on(async { crate::interrupt::watch_signals() })),
+        interrupt: Some(interrupts.clone()),
         bound: bound.clone(),
+        live: live.as_ref().map(|(board, _)| board.clone()),
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -93,6 +107,9 @@ fn render(args: RenderArgs) -> Result<()> {
         fleet.stop().await;
         anyhow::Ok((outcome, in_process))
     })?;
+    if let Some((board, _)) = &live {
+        board.finish();
+    }
     let mut outcome = match outcome {
         Ok(o) => o,
         Err(e) if bound.is_some() => bail!("{e}\nno round of the bounded render was complete: no image was written"),
@@ -120,6 +137,18 @@ fn render(args: RenderArgs) -> Result<()> {
         delivery,
     };
     println!("{}", summary.line(&outcome));
+    if let Some((_, server)) = live {
+        rt.block_on(async {
+            if args.serve_after {
+                eprintln!(
+                    "live page: the render is over; serving its final state at http://{}/ until Ctrl-C",
+                    server.addr()
+                );
+                crate::interrupt::interrupted(Some(&mut interrupts)).await;
+            }
+            server.stop().await;
+        });
+    }
     Ok(())
 }
 

@@ -64,6 +64,8 @@ pub struct Options {
     /// Render in rounds until a time or an estimated error ([`crate::bounded`]); the job must then hand out pass
     /// blocks ([`Job::passes`]).
     pub bound: Option<crate::bounded::Bound>,
+    /// Where the render's state is published for the live page (`render --serve`), if anywhere.
+    pub live: Option<std::sync::Arc<crate::live::Board>>,
 }
 
 /// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
@@ -81,6 +83,7 @@ impl Default for Options {
             interrupt: None,
             rejoin_patience: REJOIN_PATIENCE,
             bound: None,
+            live: None,
         }
     }
 }
@@ -173,6 +176,7 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
         }
         farm.print_warnings();
         farm.fill_slots();
+        farm.publish(false);
     };
     farm.finish(result, sessions)
 }
@@ -280,6 +284,8 @@ struct Farm<'a> {
     rounds: Option<crate::bounded::Rounds>,
     round_sums: Option<PassAccumulator>,
     stop_reason: Option<crate::bounded::StopReason>,
+    /// The live page's board ([`Options::live`]).
+    live: Option<std::sync::Arc<crate::live::Board>>,
 }
 
 impl<'a> Farm<'a> {
@@ -352,6 +358,7 @@ impl<'a> Farm<'a> {
             rounds,
             round_sums,
             stop_reason: None,
+            live: options.live.clone(),
         };
         if let Some(p) = &options.resume {
             farm.resume(p)?;
@@ -447,6 +454,9 @@ impl<'a> Farm<'a> {
         }
         let estimate = rounds.end_round();
         tracing::info!(passes = rounds.passes(), rounds = rounds.completed(), ?estimate, "round complete");
+        if let (Some(board), Some(e)) = (&self.live, estimate) {
+            board.push_error(self.t0.elapsed().as_secs_f64(), e);
+        }
         let active = self.sched.workers().filter(|(_, s)| s.state == WorkerState::Active).count();
         match rounds.next(active) {
             Ok(plan) => {
@@ -693,6 +703,7 @@ impl<'a> Farm<'a> {
     fn finish(mut self, result: Result<(), Stop>, sessions: Vec<JoinHandle<()>>) -> Result<Outcome, FarmError> {
         self.bar.finish_and_clear();
         self.cancel(self.tasks.keys().copied().collect::<Vec<_>>());
+        self.publish(true);
         for s in sessions {
             s.abort();
         }
@@ -832,6 +843,61 @@ impl<'a> Farm<'a> {
                 }
             })
             .collect()
+    }
+
+    /// Publishes the render's state to the live page, if there is one: at most every
+    /// [`crate::live::PUBLISH_EVERY`] unless `force`, with the image when a unit was finished since and someone
+    /// looks (or it is the final state).
+    fn publish(&mut self, force: bool) {
+        use crate::live::{self, LiveStatus, LiveWorker, Preview};
+        let Some(board) = self.live.as_deref().filter(|b| b.due(force)) else { return };
+        let (done, total) = self.sched.progress();
+        let (job, passes_done) = (self.job, self.done_rows.iter().map(|(a, b)| b - a).sum::<u32>());
+        let preview = board.wants_preview(done, force).then(|| {
+            let (pixels, gain) = match (&self.passes, job.passes, &self.rounds) {
+                // A bounded render's image holds its completed rounds.
+                (Some(acc), _, Some(rounds)) => (acc.image_of(rounds.passes()), 1.0),
+                (Some(acc), Some(all), None) => (acc.image(), all as f32 / passes_done.max(1) as f32),
+                _ => (self.image.clone(), 1.0),
+            };
+            Preview { image: photon_core::image_io::Image { width: job.width, height: job.height, pixels }, gain }
+        });
+        let render_s = self.first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
+        // Pixels of one scheduler "row": a row of the image, or a pass over all of it.
+        let px = f64::from(job.width) * if self.passes.is_some() { f64::from(job.height) } else { 1.0 };
+        let workers = (self.reports().into_iter().zip(&self.members).enumerate())
+            .map(|(i, (r, m))| LiveWorker {
+                state: live::worker_state(m.out.as_deref(), self.sched.worker_stats(WorkerId(i as u32))),
+                in_flight: self.sched.in_flight(WorkerId(i as u32)).len(),
+                mpix_per_s: self.sched.worker_stats(WorkerId(i as u32)).map_or(0.0, |s| s.rows as f64 * px / 1e6)
+                    / render_s.max(1e-3),
+                address: r.name,
+                platform: r.platform,
+                threads: r.threads,
+                strips: r.strips,
+                shipped_bytes: r.shipped_bytes,
+                fetched_bytes: r.fetched_bytes,
+            })
+            .collect();
+        let status = LiveStatus {
+            elapsed_s: self.t0.elapsed().as_secs_f64(),
+            // A bounded render's end is its deadline (its units grow round by round).
+            eta_s: match &self.rounds {
+                Some(rounds) => rounds.remaining().map(|d| d.as_secs_f64()),
+                None => live::eta_s(render_s, done - self.resumed.min(done), total - done),
+            },
+            units: if self.passes.is_some() { "pass blocks" } else { "strips" }.into(),
+            done,
+            total,
+            unit_states: live::unit_states(&self.sched),
+            workers,
+            photon_paths: self.photon_paths,
+            photon_blob_bytes: job.photons_blob.as_ref().and_then(|id| job.blobs.get(id)).map_or(0, |b| b.len() as u64),
+            width: job.width,
+            height: job.height,
+            ..LiveStatus::default()
+        };
+        board.publish(status, preview);
     }
 }
 

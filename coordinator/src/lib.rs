@@ -12,9 +12,10 @@
 //! takes the same path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of
 //! an unchanged scene. [`rejoin`] calls lost workers back with backoff, and [`interrupt`] turns SIGINT and
 //! SIGTERM into a render that stops keeping what is finished. [`report`] is what the user reads: warnings during
-//! the render, the worker table and the summary line. [`sweep`] charts error against time. [`bounded`] sizes
-//! the rounds of a render bounded by time or estimated error and estimates that error without a reference. [`model`] is a
-//! discrete-event model of a lab farm that drives the real scheduler with a simulated clock and network.
+//! the render, the worker table and the summary line; [`live`] serves a web page of the render while it runs.
+//! [`sweep`] charts error against time. [`bounded`] sizes the rounds of a render bounded by time or estimated
+//! error and estimates that error without a reference. [`model`] is a discrete-event model of a lab farm that
+//! drives the real scheduler with a simulated clock and network.
 //! [`overrides`] turns the flags that override scene settings, and the sweep's budgets, into the `KEY=VALUE`
 //! pairs of `--set`. [`cli`] holds the command line's arguments and [`commands`] runs them.
 //!
@@ -59,6 +60,7 @@ pub mod farm;
 pub mod fleet;
 pub mod interrupt;
 pub mod job;
+pub mod live;
 pub mod model;
 pub mod overrides;
 pub mod prepared_cache;

@@ -426,6 +426,18 @@ impl Scheduler {
         self.retry.iter().chain(&self.fresh).copied().collect()
     }
 
+    /// Copies of each strip in flight, in strip order: 0 for a strip that is pending, done or failed, 2 or more
+    /// for a strip whose tail copies are running beside the original (what a live view shows as duplicated).
+    pub fn copies_in_flight(&self) -> Vec<usize> {
+        let mut copies = vec![0; self.strips.len()];
+        for &(strip, _) in self.flights.keys() {
+            if let Some(c) = copies.get_mut(strip.0 as usize) {
+                *c += 1;
+            }
+        }
+        copies
+    }
+
     /// Marks a strip finished earlier (`--resume`), so it is never assigned. Returns `false` if the id is out of
     /// range or the strip was already done. A copy still in flight will report as a duplicate.
     pub fn mark_done(&mut self, strip: StripId) -> bool {

@@ -742,3 +742,27 @@ fn a_bounded_render_appends_rounds_served_after_what_is_queued() {
     assert_eq!(s.extend(0, 3), 4..4);
     assert!(s.is_done());
 }
+
+#[test]
+fn copies_in_flight_count_the_originals_and_their_tail_copies() {
+    let mut s = Scheduler::new(16, 4);
+    for w in [W0, W1] {
+        s.add_worker(w, 4);
+    }
+    assert_eq!(s.copies_in_flight(), vec![0, 0, 0, 0]);
+    let a0 = s.assign(W0, secs(0.0)).unwrap();
+    let a1 = s.assign(W0, secs(0.0)).unwrap();
+    let b = s.assign(W1, secs(1.0)).unwrap();
+    assert_eq!(s.copies_in_flight(), vec![1, 1, 1, 0]);
+    assert!(is_accepted(&s.complete(W1, b.strip, b.attempt, secs(2.0))));
+    let c = s.assign(W1, secs(2.0)).unwrap();
+    // The queue is empty: W1's free slot copies strip 0, now in flight twice.
+    let spec = s.assign(W1, secs(2.0)).unwrap();
+    assert_eq!((c.strip, spec.strip, spec.speculative), (StripId(3), StripId(0), true));
+    assert_eq!(s.copies_in_flight(), vec![2, 1, 0, 1]);
+    // The first result wins and cancels the other copy: no copy of strip 0 is left in flight.
+    assert!(is_accepted(&s.complete(W0, a0.strip, a0.attempt, secs(3.0))));
+    assert_eq!(s.copies_in_flight(), vec![0, 1, 0, 1]);
+    assert_eq!(s.done_strips(), vec![StripId(0), StripId(2)]);
+    assert!(is_accepted(&s.complete(W0, a1.strip, a1.attempt, secs(3.0))));
+}
