@@ -227,7 +227,9 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         target_error: args.target_error,
         bias_alpha: progressive.then_some(r.photons.alpha),
         passes: None,
-        estimate: false,
+        // The methods whose error more samples lower estimate it after every round, for the summary and the
+        // live page, whether or not a target stops them.
+        estimate: matches!(r.integrator, Integrator::Path | Integrator::Direct | Integrator::Progressive),
     }))
 }
 

@@ -165,8 +165,9 @@ pub fn check_sums(sums: &[i64], passes: u32) -> Result<(), PassSumsError> {
 /// For progressive photon mapping a pass is one photon pass ([`PassSums`]); several passes trace their photons
 /// and build their maps side by side (as many as the threads, within a memory bound), and each pass's gather
 /// then runs over the rows in parallel. For the other methods a pass is one camera sample of every pixel, the
-/// sample of that index ([`super::render_sample_block`]): blocks of samples are how a render bounded by time or
-/// error is cut, and `K` samples in any blocks give the bits of a strip rendered at `K` samples per pixel.
+/// sample of that index, summed in fixed point as the strip renderer sums a pixel's samples: blocks of samples
+/// are how a render bounded by time or error is cut, and `K` samples in any blocks give the bits of a strip
+/// rendered at `K` samples per pixel.
 pub fn render_passes(
     prep: &Prepared,
     rows: Range<u32>,
