@@ -8,19 +8,25 @@
 //! depends on the machines' speed.
 //!
 //! # Sizing the rounds
-//! The first round is one pass per block, two blocks per worker (at least two blocks, so that the error estimate
-//! has both halves). Each later round aims at half the time spent so far, between [`MIN_ROUND`] and
+//! The first round is two passes per block, two blocks per worker (at least two blocks, so that the error
+//! estimate has both halves); every later block holds an even number of passes (see the error estimate). Each
+//! later round aims at half the time spent so far, between [`MIN_ROUND`] and
 //! [`MAX_ROUND`], at the rate the last round measured: rounds grow geometrically, so their count (and the
-//! image-sized blocks sent back) grows with the logarithm of the time. With `--time` a round is cut to what fits
-//! before the deadline, and no round starts when less than half a pass per block fits. With `--target-error` a
+//! image-sized blocks sent back) grows with the logarithm of the time. With `--time` a round is cut to 90 % of
+//! what fits before the deadline at the last round's rate, no round starts when fewer than two passes (or half a
+//! pass per block) fit, and a round still in flight a tenth of the time limit past the deadline is dropped: the
+//! render ends with its finished rounds. The first round is timed from the first worker's readiness, not from the connections and uploads. With `--target-error` a
 //! round is also cut to the passes the error's `1/K` fall predicts are still needed (plus 10 %), and to at most
 //! the passes done (so `K` at most doubles between two estimates): the render stops soon after it crosses the
 //! target, with an error no less than about half of it.
 //!
 //! # Estimating the error without a reference
-//! Variance: the blocks are split by the parity of their index into two interleaved half-images `A` and `B`
-//! (interleaved blocks rather than interleaved samples: a block is the unit a worker returns, and both halves
-//! then span the whole render, so they carry the same bias). With `nA`, `nB` passes and per-pass variance σ²,
+//! Variance: the blocks are split into two interleaved half-images `A` and `B` by the parity of their index
+//! ([`half_of`]; interleaved blocks rather than interleaved samples: a block is the unit a worker returns, and
+//! both halves then span the whole render, so they carry the same bias). Blocks hold an even number of passes
+//! starting at an even pass (but for an odd budget's last): samples `2k` and `2k + 1` of the (0,2)-sequence lie
+//! in opposite halves of the pixel, so a block of such pairs covers the whole pixel, and the halves' difference
+//! is noise rather than the pixel's sub-pixel detail. With `nA`, `nB` passes and per-pass variance σ²,
 //! `E[(Ā − B̄)²] = σ²(1/nA + 1/nB)`, so the variance of the full mean is estimated per pixel value as
 //! `(Ā − B̄)² / ((1/nA + 1/nB)(nA + nB))`. The (0,2)-sequence stratifies the samples of the whole render better
 //! than two independent halves, so this estimate errs high.
@@ -170,10 +176,26 @@ impl Rounds {
         // An estimating render of a fixed budget leaves at least half of it to a second round: the bias model
         // needs two.
         let cap = if self.bound.estimates() && self.bound.passes.is_some() { cap.div_ceil(2) } else { cap };
-        let passes = blocks_per_round(workers).min(cap);
+        let passes = (2 * blocks_per_round(workers)).min(cap);
         self.current = passes;
         self.round_started = Instant::now();
-        RoundPlan { passes, per_block: 1 }
+        RoundPlan { passes, per_block: 2 }
+    }
+
+    /// Times the round in flight from now: the first round's clock starts when the first worker is ready, so
+    /// that its rate is the render's, not the connections' and uploads'.
+    pub fn restart_round_clock(&mut self) {
+        self.round_started = Instant::now();
+    }
+
+    /// Whether the round in flight is so late that it should be dropped: past the deadline by more than a tenth
+    /// of the time the render had (a round that ends a little late is kept; one that a lost worker or a slow
+    /// round holds up is not).
+    pub fn overdue(&self) -> bool {
+        self.bound.deadline.is_some_and(|d| {
+            let grace = d.saturating_duration_since(self.started) / 10;
+            Instant::now() > d + grace
+        })
     }
 
     /// Time left before the deadline, if there is one.
@@ -277,8 +299,9 @@ fn plan_round(s: &RoundState) -> Result<RoundPlan, StopReason> {
     let aim = (s.elapsed / 2).clamp(MIN_ROUND, MAX_ROUND);
     let mut passes = (rate * aim.as_secs_f64()).max(f64::from(blocks));
     if let Some(remaining) = s.remaining {
-        let fits = rate * remaining.as_secs_f64();
-        if remaining.is_zero() || fits < 0.5 * f64::from(blocks) {
+        // 10 % spare: the last round's rate is a measurement, and a slower round must still end in time.
+        let fits = 0.9 * rate * remaining.as_secs_f64();
+        if remaining.is_zero() || fits < (0.5 * f64::from(blocks)).max(2.0) {
             return Err(StopReason::Time);
         }
         passes = passes.min(fits);
@@ -292,8 +315,10 @@ fn plan_round(s: &RoundState) -> Result<RoundPlan, StopReason> {
         };
         passes = passes.min(needed.min(f64::from(s.done)).max(f64::from(blocks)));
     }
-    let passes = (passes.round() as u32).clamp(1, left);
-    let per_block = passes.div_ceil(blocks).clamp(1, photon_core::render::progressive::MAX_BLOCK_PASSES);
+    // Even counts, so that every block starts at an even pass and holds whole pairs (see `half_of`).
+    let passes = ((passes.round() as u32).max(2) & !1).min(left);
+    let per_block =
+        passes.div_ceil(blocks).next_multiple_of(2).clamp(2, photon_core::render::progressive::MAX_BLOCK_PASSES - 1);
     Ok(RoundPlan { passes, per_block })
 }
 
@@ -312,6 +337,12 @@ pub struct ErrorEstimate {
     alpha: Option<f32>,
 }
 
+/// The half-image block `index` belongs to: the blocks alternate (A B A B …), so each round, and with it each
+/// stretch of the radius sequence, is split between the halves.
+fn half_of(index: u32) -> usize {
+    (index % 2) as usize
+}
+
 /// One fixed-point unit in radiance.
 const UNIT: f64 = 1.0 / (1u64 << SUM_FRACTION_BITS) as f64;
 
@@ -327,7 +358,7 @@ impl ErrorEstimate {
 
     /// Adds block `index` of `passes` passes with fixed-point sums `sums`.
     pub fn add_block(&mut self, index: u32, passes: u32, sums: &[i64]) {
-        let half = (index % 2) as usize;
+        let half = half_of(index);
         if self.halves[half].is_empty() {
             return;
         }
@@ -361,10 +392,12 @@ impl ErrorEstimate {
             return None;
         }
         let n = na + nb;
-        let split = match self.alpha {
-            Some(alpha) => Some(self.time_split(alpha)?),
-            None => None,
-        };
+        // Before two rounds the bias cannot be told from noise: no estimate. When the two parts' radii hardly
+        // differ (α near 1), the bias model has nothing to extrapolate from: variance only.
+        if self.alpha.is_some() && self.rounds.len() < 2 {
+            return None;
+        }
+        let split = self.alpha.and_then(|alpha| self.time_split(alpha));
         let (mut var_sum, mut bias_sum) = (0.0, 0.0);
         for i in 0..self.halves[0].len() {
             let (a, b) = (self.halves[0][i], self.halves[1][i]);
@@ -535,13 +568,14 @@ mod tests {
         let mut est = ErrorEstimate::new(3, true, None);
         assert_eq!(est.rel_mse(), None);
         est.add_block(0, 1, &[1 << 24, 1 << 24, 1 << 24]);
-        assert_eq!(est.rel_mse(), None);
+        est.add_block(2, 1, &[1 << 24, 1 << 24, 1 << 24]);
+        assert_eq!(est.rel_mse(), None, "blocks 0 and 2 are both in the first half");
         est.add_block(1, 1, &[1 << 24, 1 << 24, 1 << 24]);
         assert_eq!(est.rel_mse(), Some(0.0));
         // Disabled: nothing kept, nothing estimated.
         let mut off = ErrorEstimate::new(3, false, None);
         off.add_block(0, 1, &[1, 1, 1]);
-        off.add_block(1, 1, &[1, 1, 1]);
+        off.add_block(2, 1, &[1, 1, 1]);
         assert_eq!(off.rel_mse(), None);
     }
 
@@ -602,9 +636,9 @@ mod tests {
         assert_eq!(plan, RoundPlan { passes: 40, per_block: 10 });
         // Early on the round is at least MIN_ROUND long: 1 s = 10 passes.
         assert_eq!(plan_round(&state(4, 0.5, None, Some((0.4, 4)))).unwrap().passes, 10);
-        // 1.5 s left: 15 passes.
-        assert_eq!(plan_round(&state(20, 8.0, Some(1.5), Some((2.0, 20)))).unwrap().passes, 15);
-        // 0.15 s left fits 1.5 passes, under half a pass per block: stop.
+        // 1.5 s left: 15 passes, less 10 %.
+        assert_eq!(plan_round(&state(20, 8.0, Some(1.5), Some((2.0, 20)))).unwrap().passes, 14);
+        // 0.15 s left fits 1.35 passes, under half a pass per block: stop.
         assert_eq!(plan_round(&state(20, 8.0, Some(0.15), Some((2.0, 20)))), Err(StopReason::Time));
         assert_eq!(plan_round(&state(20, 8.0, Some(0.0), Some((2.0, 20)))), Err(StopReason::Time));
         // The cap.
@@ -621,9 +655,10 @@ mod tests {
     fn a_target_stops_the_render_and_cuts_the_last_rounds() {
         let mut s = state(100, 20.0, None, Some((5.0, 100)));
         (s.target, s.estimating) = (Some(0.01), true);
-        // 1.5 times the target: at most 100·(1.5 − 1)·1.1 = 55 more passes, not the 200 the time aim allows.
+        // 1.5 times the target: at most 100·(1.5 − 1)·1.1 = 55 more passes (54: an even count), not the 200 the
+        // time aim allows.
         s.estimate = Some(0.015);
-        assert_eq!(plan_round(&s).unwrap().passes, 55);
+        assert_eq!(plan_round(&s).unwrap().passes, 54);
         // Far above it: at most the 100 done, so K at most doubles.
         s.estimate = Some(1.0);
         assert_eq!(plan_round(&s).unwrap().passes, 100);

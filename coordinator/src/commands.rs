@@ -64,6 +64,13 @@ fn render(args: RenderArgs) -> Result<()> {
             let board = Arc::new(Board::new(scene.render.exposure));
             let server = rt.block_on(live::serve(addr, board.clone(), token.as_deref()))?;
             eprintln!("live page: http://{}/", server.addr());
+            if !server.addr().ip().is_loopback() && token.is_none() {
+                eprintln!(
+                    "warning: the live page is served on {} without a farm token: anyone who can reach it sees the \
+                     image and the workers (give --token-file to require one)",
+                    server.addr()
+                );
+            }
             Some((board, server))
         }
         None => None,
@@ -112,7 +119,9 @@ fn render(args: RenderArgs) -> Result<()> {
     }
     let mut outcome = match outcome {
         Ok(o) => o,
-        Err(e) if bound.is_some() => bail!("{e}\nno round of the bounded render was complete: no image was written"),
+        Err(e) if bound.is_some() => {
+            bail!("{e}\nthe render was bounded by time or error: no image and no partial file were written")
+        }
         Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
     let t_assemble = Instant::now();

@@ -432,6 +432,11 @@ impl<'a> Farm<'a> {
         if let Some((strip, failure)) = self.sched.fatal() {
             return Some(Err(Stop::Fatal(format!("{strip}: {}", failure.reason))));
         }
+        // A bounded render well past its deadline stops with its finished rounds; the round in flight is dropped.
+        if self.rounds.as_ref().is_some_and(|r| r.completed() > 0 && r.overdue()) {
+            self.stop_reason = Some(crate::bounded::StopReason::Time);
+            return Some(Ok(()));
+        }
         if let Some(signal) = self.interrupted {
             return Some(self.keep_rounds(crate::bounded::StopReason::Interrupted, Stop::Interrupted(signal)));
         }
@@ -498,7 +503,13 @@ impl<'a> Farm<'a> {
             return self.on_rejoined(worker, ready);
         }
         self.unresolved -= 1;
-        self.first_ready.get_or_insert_with(Instant::now);
+        if self.first_ready.is_none() {
+            self.first_ready = Some(Instant::now());
+            // A bounded render's first round is timed from here, not from the connections and uploads.
+            if let Some(rounds) = &mut self.rounds {
+                rounds.restart_round_clock();
+            }
+        }
         let Ready { client, hello, delivered, ship_s } = ready;
         let other_mode = self.members.iter().find_map(|o| {
             o.hello.as_ref().filter(|h| h.math_mode != hello.math_mode).map(|h| (&o.addr.name, &h.math_mode))

@@ -69,7 +69,8 @@ pub struct LiveStatus {
     pub photon_paths: u64,
     /// Size of the job's photon-map blob in bytes (0 when the method has none, or each worker traces its own).
     pub photon_blob_bytes: u64,
-    /// Error against a reference over time, when the render measures it ([`Board::push_error`]); empty otherwise.
+    /// The relative MSE the render estimated of itself over time (a render bounded by time or error,
+    /// [`crate::bounded`], after each round; [`Board::push_error`]); empty otherwise.
     pub error: Vec<ErrorPoint>,
     /// The render is over (finished, failed or interrupted): nothing more will change.
     pub finished: bool,
@@ -132,7 +133,7 @@ pub struct LiveWorker {
     pub fetched_bytes: u64,
 }
 
-/// One measurement of the error against a reference.
+/// One estimate of the render's error, without a reference ([`crate::bounded`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ErrorPoint {
     /// Seconds since the render started.

@@ -150,6 +150,12 @@ pub async fn render_timed(
     let t1 = Instant::now();
     let outcome = crate::farm::render(&job, addrs, options).await?;
     let render_s = t1.elapsed().as_secs_f64();
+    // A render in rounds that stopped short (no worker left, a signal) must not pass for its budget.
+    if let (Some(b), Some((passes, _))) = (&outcome.bounded, estimated)
+        && (b.reason != crate::bounded::StopReason::Cap || b.passes != passes.max(1))
+    {
+        anyhow::bail!("the render stopped {} after {} of its {} passes (samples)", b.reason, b.passes, passes.max(1));
+    }
     let estimated_rel_mse = outcome.bounded.and_then(|b| b.rel_mse_estimate);
     Ok(Timed { image: Image { width, height, pixels: outcome.pixels }, prepare_s, render_s, estimated_rel_mse })
 }
