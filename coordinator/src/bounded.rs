@@ -22,7 +22,7 @@
 //!
 //! # Estimating the error without a reference
 //! Variance: the blocks are split into two interleaved half-images `A` and `B` by the parity of their index
-//! ([`half_of`]; interleaved blocks rather than interleaved samples: a block is the unit a worker returns, and
+//! (`half_of`; interleaved blocks rather than interleaved samples: a block is the unit a worker returns, and
 //! both halves then span the whole render, so they carry the same bias). Blocks hold an even number of passes
 //! starting at an even pass (but for an odd budget's last): samples `2k` and `2k + 1` of the (0,2)-sequence lie
 //! in opposite halves of the pixel, so a block of such pairs covers the whole pixel, and the halves' difference
