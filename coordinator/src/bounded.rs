@@ -50,7 +50,7 @@
 //! tracer stopped at a fifth of the samples its target needed). The bias term is summed over the image before it
 //! is clamped at 0.
 
-use photon_core::render::progressive::{SUM_FRACTION_BITS, radius_power_sum};
+use photon_core::render::progressive::{PassAccumulator, SUM_FRACTION_BITS, radius_power_sum};
 use std::ops::Range;
 use std::time::{Duration, Instant};
 
@@ -137,7 +137,9 @@ pub struct RoundPlan {
     pub per_block: u32,
 }
 
-/// The rounds of one bounded render: when each ended, how fast it went, and the error estimate.
+/// The rounds of one bounded render: when each ended, how fast it went, the sums of the round in flight (they
+/// join the image only when the round is complete, so the image holds whole rounds), the error estimate, and
+/// why the render stopped.
 #[derive(Debug)]
 pub struct Rounds {
     bound: Bound,
@@ -149,8 +151,11 @@ pub struct Rounds {
     current: u32,
     /// Seconds and passes of the last completed round.
     last: Option<(f64, u32)>,
+    /// Fixed-point sums of the blocks of the round in flight.
+    sums: PassAccumulator,
     estimate: ErrorEstimate,
     last_estimate: Option<f64>,
+    stopped: Option<StopReason>,
 }
 
 impl Rounds {
@@ -165,8 +170,10 @@ impl Rounds {
             ends: Vec::new(),
             current: 0,
             last: None,
+            sums: PassAccumulator::new(values, 1),
             estimate,
             last_estimate: None,
+            stopped: None,
         }
     }
 
@@ -213,19 +220,17 @@ impl Rounds {
         self.ends.len() as u32
     }
 
-    /// The last estimate of the relative MSE.
-    pub fn last_estimate(&self) -> Option<f64> {
-        self.last_estimate
-    }
-
     /// Adds an accepted block of the round in flight: its index (for the interleaved halves), its passes and
     /// its fixed-point sums.
     pub fn add_block(&mut self, index: u32, passes: u32, sums: &[i64]) {
+        self.sums.add(sums);
         self.estimate.add_block(index, passes, sums);
     }
 
-    /// Ends the round in flight; returns the new error estimate when the render estimates one.
-    pub fn end_round(&mut self) -> Option<f64> {
+    /// Ends the round in flight: its sums join `image`. Returns the new error estimate when the render
+    /// estimates one.
+    pub fn end_round(&mut self, image: &mut PassAccumulator) -> Option<f64> {
+        image.absorb(&mut self.sums);
         let passes = self.passes() + self.current;
         self.ends.push(passes);
         self.last = Some((self.round_started.elapsed().as_secs_f64(), self.current));
@@ -234,7 +239,22 @@ impl Rounds {
         self.last_estimate
     }
 
-    /// The next round for `workers` workers, or why the render stops.
+    /// Records why the render stops (the round in flight, if any, is dropped with its sums).
+    pub fn stop(&mut self, reason: StopReason) {
+        self.stopped = Some(reason);
+    }
+
+    /// What the render did: the passes and rounds in the image, why it stopped, the last estimate.
+    pub fn report(&self) -> BoundedReport {
+        BoundedReport {
+            passes: self.passes(),
+            rounds: self.completed(),
+            reason: self.stopped.unwrap_or(StopReason::Cap),
+            rel_mse_estimate: self.last_estimate,
+        }
+    }
+
+    /// The next round for `workers` workers, or why the render stops (recorded as by [`Rounds::stop`]).
     pub fn next(&mut self, workers: usize) -> Result<RoundPlan, StopReason> {
         let now = Instant::now();
         let plan = plan_round(&RoundState {
@@ -247,7 +267,8 @@ impl Rounds {
             estimating: self.bound.estimates(),
             cap: self.bound.passes.unwrap_or(MAX_PASSES).min(MAX_PASSES),
             workers,
-        })?;
+        })
+        .inspect_err(|&reason| self.stop(reason))?;
         self.current = plan.passes;
         self.round_started = now;
         Ok(plan)

@@ -279,11 +279,9 @@ struct Farm<'a> {
     none_active_since: Option<Duration>,
     /// The signal that asked to stop, once one has.
     interrupted: Option<Interrupt>,
-    /// A render bounded by time or error: its rounds, the sums of the round in flight (they join `passes` when
-    /// the round is complete, so the image holds whole rounds only) and why it stopped.
+    /// A render bounded by time or error: its rounds (the round in flight's sums join `passes` when it is
+    /// complete) and why it stopped.
     rounds: Option<crate::bounded::Rounds>,
-    round_sums: Option<PassAccumulator>,
-    stop_reason: Option<crate::bounded::StopReason>,
     /// The live page's board ([`Options::live`]).
     live: Option<std::sync::Arc<crate::live::Board>>,
 }
@@ -314,7 +312,6 @@ impl<'a> Farm<'a> {
             (Some(p), None) => (p, Vec::new(), Some(PassAccumulator::new(pixels, p))),
             (None, _) => (job.height, vec![0.0f32; pixels], None),
         };
-        let round_sums = first.map(|_| PassAccumulator::new(pixels, 1));
         let members = workers
             .iter()
             .map(|a| Member {
@@ -356,8 +353,6 @@ impl<'a> Farm<'a> {
             none_active_since: None,
             interrupted: None,
             rounds,
-            round_sums,
-            stop_reason: None,
             live: options.live.clone(),
         };
         if let Some(p) = &options.resume {
@@ -433,8 +428,8 @@ impl<'a> Farm<'a> {
             return Some(Err(Stop::Fatal(format!("{strip}: {}", failure.reason))));
         }
         // A bounded render well past its deadline stops with its finished rounds; the round in flight is dropped.
-        if self.rounds.as_ref().is_some_and(|r| r.completed() > 0 && r.overdue()) {
-            self.stop_reason = Some(crate::bounded::StopReason::Time);
+        if let Some(rounds) = self.rounds.as_mut().filter(|r| r.completed() > 0 && r.overdue()) {
+            rounds.stop(crate::bounded::StopReason::Time);
             return Some(Ok(()));
         }
         if let Some(signal) = self.interrupted {
@@ -453,11 +448,9 @@ impl<'a> Farm<'a> {
     /// A bounded render whose round is complete: its sums join the image, and the next round is queued, or the
     /// render ends.
     fn next_round(&mut self) -> Option<Result<(), Stop>> {
-        let rounds = self.rounds.as_mut()?;
-        if let (Some(acc), Some(round)) = (&mut self.passes, &mut self.round_sums) {
-            acc.absorb(round);
-        }
-        let estimate = rounds.end_round();
+        // A bound on a job of strips (no pass blocks, against `Options::bound`'s contract) ends with its strips.
+        let (Some(rounds), Some(image)) = (self.rounds.as_mut(), self.passes.as_mut()) else { return Some(Ok(())) };
+        let estimate = rounds.end_round(image);
         tracing::info!(passes = rounds.passes(), rounds = rounds.completed(), ?estimate, "round complete");
         if let (Some(board), Some(e)) = (&self.live, estimate) {
             board.push_error(self.t0.elapsed().as_secs_f64(), e);
@@ -469,21 +462,20 @@ impl<'a> Farm<'a> {
                 self.bar.set_length(self.sched.strip_count() as u64);
                 None
             }
-            Err(reason) => {
-                self.stop_reason = Some(reason);
-                Some(Ok(()))
-            }
+            Err(_) => Some(Ok(())),
         }
     }
 
     /// How a render that must stop for `reason` ends: a bounded one with a complete round keeps its rounds;
     /// the others fail with `stop`.
     fn keep_rounds(&mut self, reason: crate::bounded::StopReason, stop: Stop) -> Result<(), Stop> {
-        if self.rounds.as_ref().is_some_and(|r| r.completed() > 0) {
-            self.stop_reason = Some(reason);
-            return Ok(());
+        match self.rounds.as_mut().filter(|r| r.completed() > 0) {
+            Some(rounds) => {
+                rounds.stop(reason);
+                Ok(())
+            }
+            None => Err(stop),
         }
-        Err(stop)
     }
 
     fn on_event(&mut self, event: Event, now: Duration) {
@@ -607,12 +599,9 @@ impl<'a> Farm<'a> {
     fn accept(&mut self, strip: StripId, data: StripData, rays: u64, cancel: Vec<(WorkerId, StripId)>) {
         if let Some(rows) = self.sched.strip_rows(strip) {
             match (data, &mut self.passes) {
-                (StripData::Sums(sums), Some(acc)) => match (&mut self.rounds, &mut self.round_sums) {
-                    (Some(rounds), Some(round)) => {
-                        rounds.add_block(strip.0, rows.len() as u32, &sums);
-                        round.add(&sums);
-                    }
-                    _ => acc.add(&sums),
+                (StripData::Sums(sums), Some(acc)) => match &mut self.rounds {
+                    Some(rounds) => rounds.add_block(strip.0, rows.len() as u32, &sums),
+                    None => acc.add(&sums),
                 },
                 (StripData::Pixels(pixels), None) => {
                     let at = 3 * self.job.width as usize * rows.start as usize;
@@ -729,12 +718,7 @@ impl<'a> Farm<'a> {
         let workers = self.reports();
         let stop = match result {
             Ok(()) => {
-                let bounded = self.rounds.as_ref().map(|r| crate::bounded::BoundedReport {
-                    passes: r.passes(),
-                    rounds: r.completed(),
-                    reason: self.stop_reason.unwrap_or(crate::bounded::StopReason::Cap),
-                    rel_mse_estimate: r.last_estimate(),
-                });
+                let bounded = self.rounds.as_ref().map(crate::bounded::Rounds::report);
                 let pixels = match (&self.passes, &bounded) {
                     (Some(acc), Some(b)) => acc.image_of(b.passes),
                     (Some(acc), None) => acc.image(),
