@@ -40,6 +40,7 @@ fn job_of(prep: &Prepared) -> Job {
     Job::new(
         prep.encode_scene().expect("scene"),
         prep.encode_photons().expect("photons"),
+        prep.encode_textures().expect("textures"),
         prep.encode_frame().expect("frame"),
         (prep.camera.width, prep.camera.height),
         &prep.settings,
@@ -340,7 +341,9 @@ fn model() {
         let job = job_of(&prep);
         let photons_blob = job.photons_blob.as_ref().and_then(|id| job.blobs.get(id)).map(|b| b.as_slice());
         let decode = |photons| {
-            Prepared::from_blobs(&job.blobs[&job.scene_blob], photons, &job.frame, usize::MAX).expect("decode")
+            let textures: Vec<&[u8]> = job.texture_blobs.iter().map(|id| job.blobs[id].as_slice()).collect();
+            Prepared::from_blobs(&job.blobs[&job.scene_blob], photons, &job.frame, &textures, usize::MAX)
+                .expect("decode")
         };
         let (load_core_s, _) = one_thread(|| decode(photons_blob));
         // How the workers get the maps: shipped (the coordinator traces them while preparing), passed on among

@@ -914,6 +914,7 @@ fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: U
         pass_start: passes.start,
         pass_end: passes.end,
         trace_photons: job.trace_photons,
+        texture_blobs: job.texture_blobs.clone(),
     };
     let (strip, attempt, width) = (a.strip, a.attempt, job.width);
     let progress_tx = tx.clone();

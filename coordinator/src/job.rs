@@ -32,7 +32,7 @@ pub enum JobError {
         dir: PathBuf,
         /// The decoder's error.
         #[source]
-        cause: CodecError,
+        cause: photon_core::prepare::blobs::FrameError,
     },
     /// The partial file cannot be read.
     #[error("reading the partial file {}", path.display())]
@@ -70,6 +70,8 @@ pub struct Job {
     pub scene_blob: String,
     /// Blob id of the photon maps, if the method has any.
     pub photons_blob: Option<String>,
+    /// Blob ids of the texture images, by slot.
+    pub texture_blobs: Vec<String>,
     /// Every blob by id, shared with the shipping tasks.
     pub blobs: BTreeMap<String, Arc<Vec<u8>>>,
     /// The encoded frame (camera and settings).
@@ -94,6 +96,7 @@ impl Job {
     pub fn new(
         scene: Vec<u8>,
         photons: Option<Vec<u8>>,
+        textures: Vec<Vec<u8>>,
         frame: Vec<u8>,
         (width, height): (u32, u32),
         settings: &photon_core::scene::RenderSettings,
@@ -106,18 +109,40 @@ impl Job {
             blobs.insert(id.clone(), Arc::new(p));
             id
         });
+        let texture_blobs = textures
+            .into_iter()
+            .map(|t| {
+                let id = photon_proto::blob_id(&t);
+                blobs.insert(id.clone(), Arc::new(t));
+                id
+            })
+            .collect();
         let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
         let passes = progressive.then_some(settings.photons.passes.max(1));
         let trace_photons = settings.integrator.needs_photon_maps() && photons_blob.is_none();
-        Self { scene_blob, photons_blob, blobs, frame, width, height, passes, trace_photons, swarm: None }
+        Self {
+            scene_blob,
+            photons_blob,
+            texture_blobs,
+            blobs,
+            frame,
+            width,
+            height,
+            passes,
+            trace_photons,
+            swarm: None,
+        }
     }
 
-    /// A fingerprint of everything that decides the pixels: the scene blob, the frame and the size. A partial
+    /// A fingerprint of everything that decides the pixels: the scene blob, the textures, the frame and the size. A partial
     /// file is resumed only by the job with the same fingerprint. The photons blob is left out: the scene and
     /// the frame decide its bytes, and a job whose workers trace the maps renders the same image.
     pub fn fingerprint(&self) -> String {
         let mut h = photon_proto::Hasher::new();
         h.update(self.scene_blob.as_bytes());
+        for t in &self.texture_blobs {
+            h.update(t.as_bytes());
+        }
         h.update(&self.frame);
         h.update(&self.width.to_le_bytes());
         h.update(&self.height.to_le_bytes());
@@ -164,10 +189,13 @@ pub fn prepare_job(
     let frame = Prepared::encode_frame_of(&camera, &settings).map_err(|e| JobError::Encode("frame", e))?;
     let (width, height) = (camera.width, camera.height);
     let needs_photons = settings.integrator.needs_photon_maps();
-    let job = |scene_blob, photons| Job::new(scene_blob, photons, frame.clone(), (width, height), &settings);
+    let job = |scene_blob, photons, textures| {
+        Job::new(scene_blob, photons, textures, frame.clone(), (width, height), &settings)
+    };
     let Some(cache) = cache else {
         let prep = Prepared::new(scene, scene_path)?;
         let scene_blob = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
+        let textures = prep.encode_textures().map_err(|e| JobError::Encode("textures", e))?;
         let decision = needs_photons.then(|| delivery(&prep));
         let photons = match decision {
             Some(d) if d.mode.ships() => {
@@ -176,34 +204,44 @@ pub fn prepare_job(
             }
             _ => None,
         };
-        return Ok((job(scene_blob, photons), None, decision));
+        return Ok((job(scene_blob, photons, textures), None, decision));
     };
     let keys = PreparedCache::keys(scene)?;
     let cached_scene = cache.load(&keys.scene, "scene");
     let scene_hit = cached_scene.is_some();
     // Build what is missing; decode the cached scene only when photons are involved.
-    let (scene_blob, prep) = match cached_scene {
-        Some(bytes) => (bytes, None),
+    let (scene_blob, prep, images) = match cached_scene {
+        Some(bytes) => {
+            // Texture images are not cached: they are read and decoded from their files.
+            let (_, images) = photon_core::prepare::textures::load(scene, scene_path)?;
+            (bytes, None, Arc::new(images))
+        }
         None => {
             let prep = Prepared::new(scene, scene_path)?;
             let bytes = prep.encode_scene().map_err(|e| JobError::Encode("scene", e))?;
             cache.store(&keys.scene, "scene", &bytes);
-            (bytes, Some(prep))
+            let images = prep.textures.clone();
+            (bytes, Some(prep), images)
         }
     };
+    let textures = images
+        .iter()
+        .map(photon_core::codec::encode)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|e| JobError::Encode("textures", e))?;
     if !needs_photons {
         let hits = prepared_cache::Hits { scene: scene_hit, photons: false };
-        return Ok((job(scene_blob, None), Some(hits), None));
+        return Ok((job(scene_blob, None, textures), Some(hits), None));
     }
     let prep = match prep {
         Some(p) => p,
-        None => Prepared::from_scene_blob(&scene_blob, camera, settings.clone(), usize::MAX)
+        None => Prepared::from_scene_blob(&scene_blob, images, camera, settings.clone(), usize::MAX)
             .map_err(|cause| JobError::DecodeCached { dir: cache.dir().into(), cause })?,
     };
     let decision = delivery(&prep);
     if !decision.mode.ships() {
         let hits = prepared_cache::Hits { scene: scene_hit, photons: false };
-        return Ok((job(scene_blob, None), Some(hits), Some(decision)));
+        return Ok((job(scene_blob, None, textures), Some(hits), Some(decision)));
     }
     let cached_photons = cache.load(&keys.photons, "photons");
     let hits = prepared_cache::Hits { scene: scene_hit, photons: cached_photons.is_some() };
@@ -218,7 +256,7 @@ pub fn prepare_job(
             bytes
         }
     };
-    Ok((job(scene_blob, photons), Some(hits), Some(decision)))
+    Ok((job(scene_blob, photons, textures), Some(hits), Some(decision)))
 }
 
 /// Where an interrupted render keeps its finished strips.

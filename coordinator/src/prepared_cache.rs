@@ -4,8 +4,9 @@
 //! Two keys, so that changing only what photons depend on keeps the geometry:
 //! - the **scene key** hashes the build id, the scene's materials, objects and lights as parsed (after `--set`),
 //!   and the path and bytes of every file they reference (meshes);
-//! - the **photons key** hashes the scene key and the render settings except those that cannot change a photon
-//!   (samples per pixel, exposure).
+//! - the **photons key** hashes the scene key, the render settings except those that cannot change a photon
+//!   (samples per pixel, exposure), and the path and bytes of every texture image (photons bounce off textured
+//!   surfaces; the scene blob names images by slot, so it does not depend on them).
 //!
 //! The camera is in neither: it travels in the frame. A changed input changes a key, and another build has
 //! another build id, so a stale entry is never read; it just ages out. Each file holds the BLAKE3 hash of its
@@ -97,6 +98,14 @@ impl PreparedCache {
         let mut h = photon_proto::Hasher::new();
         h.update(scene_key.as_bytes());
         h.update(&enc("settings", photon_core::codec::encode(&settings))?);
+        // Photons bounce off textured surfaces: their images' bytes decide the maps (not the scene blob, which
+        // names images by slot).
+        for (path, _) in photon_core::prepare::textures::files(scene) {
+            let bytes = std::fs::read(&path).unwrap_or_default();
+            h.update(path.to_string_lossy().as_bytes());
+            h.update(&(bytes.len() as u64).to_le_bytes());
+            h.update(&bytes);
+        }
         Ok(Keys { scene: scene_key, photons: h.finalize().to_hex().to_string() })
     }
 
@@ -166,6 +175,25 @@ mod tests {
         let mesh = PreparedCache::keys(&scene(&dir, 1000, 4)).unwrap();
         assert_ne!(base.scene, mesh.scene);
         assert_ne!(base.photons, mesh.photons);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn a_changed_texture_image_changes_the_photons_key_only() {
+        let dir = std::env::temp_dir().join(format!("photon-prepared-texture-keys-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("a.png"), b"first image bytes").unwrap();
+        let text = "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\n\
+                    [materials.wood]\ntype = \"lambert\"\nalbedo = { image = \"a.png\" }\n\
+                    [[objects]]\ntype = \"sphere\"\ncenter = [0, 0, 0]\nradius = 1\nmaterial = \"wood\"\n";
+        std::fs::write(dir.join("s.toml"), text).unwrap();
+        let keys = || PreparedCache::keys(&Scene::load(&dir.join("s.toml")).unwrap()).unwrap();
+        let before = keys();
+        std::fs::write(dir.join("a.png"), b"other image bytes").unwrap();
+        let after = keys();
+        // The scene blob names images by slot: it does not change; photons bounce off the new texels.
+        assert_eq!(before.scene, after.scene);
+        assert_ne!(before.photons, after.photons);
         let _ = std::fs::remove_dir_all(&dir);
     }
 

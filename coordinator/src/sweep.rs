@@ -132,7 +132,8 @@ pub async fn render_timed(
     let prep = Prepared::new(scene, scene_path)?.with_photon_maps(scene_path)?;
     let (width, height) = (prep.camera.width, prep.camera.height);
     let (scene_blob, photons, frame) = (prep.encode_scene()?, prep.encode_photons()?, prep.encode_frame()?);
-    let mut job = crate::job::Job::new(scene_blob, photons, frame, (width, height), &prep.settings);
+    let textures = prep.encode_textures()?;
+    let mut job = crate::job::Job::new(scene_blob, photons, textures, frame, (width, height), &prep.settings);
     let r = &prep.settings;
     let estimated = match r.integrator {
         Integrator::Path | Integrator::Direct => Some((r.spp, None)),

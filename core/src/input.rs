@@ -12,6 +12,9 @@ pub const MAX_SCENE_BYTES: u64 = 16 << 20;
 /// The default size cap of a mesh file, in MiB (`[limits] mesh_mib` in a scene).
 pub const DEFAULT_MESH_MIB: u64 = 2048;
 
+/// The default cap on a texture image, in MiB (`limits.texture_mib`), both its file and its decoded texels.
+pub const DEFAULT_TEXTURE_MIB: u64 = 1024;
+
 /// How many characters of the input an error message quotes.
 pub const EXCERPT_CHARS: usize = 200;
 

@@ -34,7 +34,7 @@ fn blobs_render_the_same_bytes() {
         let photons = prep.encode_photons().unwrap();
         let frame = prep.encode_frame().unwrap();
         assert_eq!(photons.is_some(), integrator == Integrator::FinalGather);
-        let back = Prepared::from_blobs(&scene, photons.as_deref(), &frame, usize::MAX).unwrap();
+        let back = Prepared::from_blobs(&scene, photons.as_deref(), &frame, &[], usize::MAX).unwrap();
         let h = prep.camera.height;
         let a = render_strip(&prep, 0..h, &|_| {});
         // Strips cut anywhere give the same bytes as the whole image.

@@ -77,7 +77,7 @@ fn photons_on_a_smooth_shaded_cube_carry_what_the_path_tracer_sees() {
         s += x;
         s2 += x * x;
         omega += i4pi;
-        rho = f64::from(prep.materials[hit.material as usize].bsdf(&hit).albedo(-w).x);
+        rho = f64::from(prep.materials[hit.material as usize].bsdf(&hit, &prep.textures).albedo(-w).x);
     }
     let (expected, expected_se) = mean_se(s, s2, f64::from(m));
     let uncorrected = omega / f64::from(m);

@@ -134,7 +134,7 @@ fn wrong_types_say_what_was_expected() {
         (format!("{CAMERA}{WHITE}{SPHERE}").replace("radius = 0.5", "radius = \"big\""), "line 8", "expected f32"),
         (CAMERA.replace("eye = [0.0, 1.0, 3.0]", "eye = [0.0, 1.0]"), "line 2", "3"),
         (format!("{CAMERA}{WHITE}{SPHERE}emission = [1.0, 1.0, 1.0]\n"), "line 8", "expected"),
-        (format!("{CAMERA}{WHITE}albedo = \"red\"\n"), "line 6", "a number or an [r, g, b] array"),
+        (format!("{CAMERA}{WHITE}albedo = \"red\"\n"), "line 6", "a number, an [r, g, b] array"),
         (format!("{CAMERA}aperture = true\n"), "line 6", "expected f32"),
     ];
     for (text, line, expected) in cases {

@@ -35,7 +35,7 @@ pub mod pb {
 }
 
 /// Version of the protocol; raise it with every incompatible change of `render.proto` or of its meaning.
-pub const PROTOCOL_VERSION: u32 = 5;
+pub const PROTOCOL_VERSION: u32 = 6;
 
 /// A hash of the code that decides what a worker renders and how it speaks (core, proto, worker and the locked
 /// dependencies): coordinator and workers must have the same one.

@@ -250,3 +250,56 @@ fn sigterm_stops_a_worker_cleanly() {
     let status = w.terminate(Duration::from_secs(20)).expect("the worker did not stop within 20 s of SIGTERM");
     assert!(status.success(), "{status}");
 }
+
+/// A copy of `scenes/textured.toml` with its images and mesh in a folder of its own, so that a test may change
+/// an image.
+fn textured_copy(dir: &Path) -> PathBuf {
+    let src = scenes_dir();
+    for sub in ["textures", "meshes"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+    }
+    for f in
+        ["textured.toml", "textures/wood.png", "textures/bricks.png", "textures/ridges-normal.png", "meshes/torus.obj"]
+    {
+        std::fs::copy(src.join(f), dir.join(f)).unwrap();
+    }
+    dir.join("textured.toml")
+}
+
+/// Every texture kind (checker, image, bump map, normal map) renders through the farm with the in-process
+/// bytes, and a second render after one image changed ships that image alone: textures are their own blobs.
+#[test]
+fn a_textured_scene_renders_through_the_farm_and_a_changed_image_ships_alone() {
+    let dir = temp_dir("distributed", "textured");
+    let scene = textured_copy(&dir);
+    let job = ["--size", "48x48", "--spp", "4", "-q"];
+    let run = |out: &Path, extra: &[&str]| {
+        let mut cmd = Command::new(coordinator());
+        cmd.arg("render").arg(&scene).arg("-o").arg(out).args(job).args(extra);
+        run_with_timeout(&mut cmd, LIMIT)
+    };
+    let o = run(&dir.join("ref.exr"), &[]);
+    assert!(o.status.success(), "{}", text(&o));
+    let want = bits(&dir.join("ref.exr"));
+    let (a, b) = (WorkerProcess::start(&["--threads", "1"]), WorkerProcess::start(&["--threads", "1"]));
+    let o = run(&dir.join("two.exr"), &["--workers", &workers_arg(&[&a, &b])]);
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(bits(&dir.join("two.exr")) == want, "two workers changed the textured image");
+    let first = shipped(&o);
+    // Another wood image, same size: only its blob travels (to each of the two workers).
+    let wood = dir.join("textures/wood.png");
+    let img = image::open(&wood).unwrap().into_rgb8();
+    let (w, h) = img.dimensions();
+    let inverted: Vec<u8> = img.into_raw().iter().map(|v| 255 - v).collect();
+    image::RgbImage::from_raw(w, h, inverted).unwrap().save(&wood).unwrap();
+    let o = run(&dir.join("again.exr"), &["--workers", &workers_arg(&[&a, &b])]);
+    assert!(o.status.success(), "{}", text(&o));
+    let texels = u64::from(w * h * 3);
+    let again = shipped(&o);
+    assert!(
+        (2 * texels..2 * texels + 256).contains(&again),
+        "shipped {again} B, expected two wood blobs of ~{texels} B"
+    );
+    assert!(first > again + 100_000, "the first render ships the scene too: {first} B");
+    assert!(bits(&dir.join("again.exr")) != want, "the changed image did not change the render");
+}

@@ -87,17 +87,20 @@ fn strips_and_speculative(o: &Output, addr: &str) -> (u32, u32) {
 }
 
 /// Every code path a worker runs: the camera, spheres (their UVs), rectangles, meshes with interpolated normals,
-/// Lambert, mirror, glass and Phong lobes, photon gathering, and photon tracing itself (progressive passes are
-/// traced on the workers). Each job is rendered by the x86-64 worker alone and the aarch64 worker alone.
+/// Lambert, mirror, glass and Phong lobes, textures, bump and normal maps, photon gathering, and photon tracing
+/// itself (progressive passes are traced on the workers). Each job is rendered by the x86-64 worker alone and the aarch64 worker alone.
 #[test]
 fn aarch64_and_x86_64_workers_render_identical_strips() {
     let Some(arm) = start_aarch64(&["--threads", "2"]) else { return };
     let x86 = WorkerProcess::start(&["--threads", "2"]);
     let dir = temp_dir("mixed-arch", "agree");
-    let jobs: [(&str, &[&str]); 3] = [
+    let jobs: [(&str, &[&str]); 5] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
+        // Checker, image (sRGB table), bump and normal maps: lookups, finite differences and tangent frames.
+        ("textured.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
+        ("textured.toml", &["--size", "32x32", "--integrator", "progressive", "--passes", "2"]),
     ];
     for (scene, job) in jobs {
         let (a, b) = (dir.join("x86.exr"), dir.join("arm.exr"));

@@ -153,7 +153,7 @@ pub enum Fault {
 
 /// The decoded scene of one job.
 struct Job {
-    key: [String; 3],
+    key: [String; 4],
     prep: Prepared,
     /// What making the job cost and no finished strip has reported yet: the strip that made it may be
     /// cancelled (a tail copy that lost), and its cost then goes with the next strip of the job.
@@ -371,6 +371,9 @@ pub struct Limits {
     pub threads: usize,
 }
 
+/// The most texture images one request may name.
+pub const MAX_TEXTURES: usize = 4096;
+
 /// The longest frame blob accepted (a camera and render settings take a few hundred bytes).
 pub const MAX_FRAME_BYTES: usize = 64 << 10;
 
@@ -389,6 +392,18 @@ pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Fram
         return Err(Status::invalid_argument(format!(
             "photons_blob: {} is not a blob id (64 lowercase hex digits, or empty)",
             quote(&r.photons_blob)
+        )));
+    }
+    if r.texture_blobs.len() > MAX_TEXTURES {
+        return Err(Status::invalid_argument(format!(
+            "texture_blobs: {} ids, at most {MAX_TEXTURES} expected",
+            r.texture_blobs.len()
+        )));
+    }
+    if let Some((i, id)) = r.texture_blobs.iter().enumerate().find(|(_, id)| !photon_proto::is_blob_id(id)) {
+        return Err(Status::invalid_argument(format!(
+            "texture_blobs[{i}]: {} is not a blob id (64 lowercase hex digits)",
+            quote(id)
         )));
     }
     if r.row_start >= r.row_end {
@@ -744,7 +759,7 @@ impl Render for Worker {
         // Held until the strip's last event is sent (or it is cancelled).
         let call = self.peers.admit(request.remote_addr())?;
         let r = request.into_inner();
-        for id in [&r.scene_blob, &r.photons_blob] {
+        for id in [&r.scene_blob, &r.photons_blob].into_iter().chain(&r.texture_blobs) {
             if photon_proto::is_blob_id(id) && !self.blobs.contains(id) {
                 return Err(Status::not_found(format!("blob {id} is unknown here: upload it with PutBlob first")));
             }
@@ -818,7 +833,7 @@ impl StripContext {
     fn job(&self, r: &pb::StripRequest) -> Result<Arc<Job>, Status> {
         // A traced map and a received one are the same bits, but keep the jobs apart all the same.
         let photons = if r.trace_photons { "traced".to_owned() } else { r.photons_blob.clone() };
-        let key = [r.scene_blob.clone(), photons, photon_proto::blob_id(&r.frame)];
+        let key = [r.scene_blob.clone(), photons, photon_proto::blob_id(&r.frame), r.texture_blobs.join(",")];
         // A panic while the lock was held (a bug, caught by `render_guarded`) leaves a list of whole jobs.
         let mut jobs = self.jobs.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some(i) = jobs.iter().position(|j| j.key == key) {
@@ -833,9 +848,11 @@ impl StripContext {
         let scene = blob(&r.scene_blob)?;
         let photons = if r.photons_blob.is_empty() { None } else { Some(blob(&r.photons_blob)?) };
         let photons = photons.as_deref().map(Vec::as_slice);
+        let textures = r.texture_blobs.iter().map(|id| blob(id)).collect::<Result<Vec<_>, _>>()?;
+        let textures: Vec<&[u8]> = textures.iter().map(|b| b.as_slice()).collect();
         let mut prep = self
             .pool
-            .install(|| Prepared::from_blobs(&scene, photons, &r.frame, usize::MAX))
+            .install(|| Prepared::from_blobs(&scene, photons, &r.frame, &textures, usize::MAX))
             .map_err(|e| Status::invalid_argument(format!("the job's blobs do not decode: {e}")))?;
         let mut load = Load { seconds: t0.elapsed().as_secs_f64(), ..Load::default() };
         if r.trace_photons {

@@ -110,8 +110,15 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
             pass_start: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
             pass_end: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
             trace_photons: rng.below(2) == 0,
+            texture_blobs: match rng.below(4) {
+                0 => vec![id.clone()],
+                1 => vec!["not-a-blob".to_owned()],
+                2 => vec![String::new(); 5000],
+                _ => Vec::new(),
+            },
         };
         if mode == 3 {
+            r.texture_blobs.clear();
             // A well-formed request of the base frame (48 rows, path tracing: no photons blob, no passes).
             (r.scene_blob, r.photons_blob, r.trace_photons) = (id.clone(), String::new(), false);
             (r.pass_start, r.pass_end) = (0, 0);

@@ -77,8 +77,13 @@ pub struct Hit {
     pub n: Vec3A,
     /// Shading unit normal (interpolated on meshes), on the same side as `n`.
     pub ns: Vec3A,
-    /// Texture coordinates.
+    /// Texture coordinates (see `crate::material::texture` for each shape's convention).
     pub uv: Vec2,
+    /// `∂p/∂u`: how the point moves per unit of `u` (scene units); with `dpdv`, the tangent frame of bump and
+    /// normal maps.
+    pub dpdu: Vec3A,
+    /// `∂p/∂v`.
+    pub dpdv: Vec3A,
     /// Material index.
     pub material: u32,
     /// Area light index, or [`NONE`].
@@ -164,28 +169,37 @@ impl Geometry {
         match prim {
             PrimRef::Plane(i) => {
                 let pl = &self.planes[i as usize];
-                let LocalHit { p, p_error, n, uv } = pl.plane.local_hit(ray, t);
-                Hit { t, p, p_error, n, ns: n, uv, material: pl.material, light: NONE, object: pl.object, prim }
+                let LocalHit { p, p_error, n, uv, dpdu, dpdv } = pl.plane.local_hit(ray, t);
+                let (material, light, object) = (pl.material, NONE, pl.object);
+                Hit { t, p, p_error, n, ns: n, uv, dpdu, dpdv, material, light, object, prim }
             }
             PrimRef::Bounded(i) => {
                 let pr = &self.prims[i as usize];
-                let LocalHit { p, p_error, n, uv } = pr.shape.local_hit(ray, t);
-                let (n, ns, uv) = match pr.shape {
-                    crate::geometry::shapes::Shape::Triangle(tri) if tri.mesh != crate::geometry::shapes::NO_MESH => {
-                        self.mesh_shading(tri.mesh, tri.face, uv, n)
+                let LocalHit { p, p_error, n, uv, dpdu, dpdv } = pr.shape.local_hit(ray, t);
+                let (n, ns, uv, dpdu, dpdv) = match pr.shape {
+                    Shape::Triangle(tri) if tri.mesh != shapes::NO_MESH => {
+                        let (n, ns, uv_mesh) = self.mesh_shading(&tri, uv, n);
+                        match uv_mesh {
+                            Some((uv, dpdu, dpdv)) => (n, ns, uv, dpdu, dpdv),
+                            None => (n, ns, uv, dpdu, dpdv),
+                        }
                     }
-                    _ => (n, n, uv),
+                    _ => (n, n, uv, dpdu, dpdv),
                 };
-                Hit { t, p, p_error, n, ns, uv, material: pr.material, light: pr.light, object: pr.object, prim }
+                let (material, light, object) = (pr.material, pr.light, pr.object);
+                Hit { t, p, p_error, n, ns, uv, dpdu, dpdv, material, light, object, prim }
             }
         }
     }
 
-    /// Geometric normal, interpolated shading normal and UV at barycentrics `b` of a mesh face. The mesh's
-    /// normals say which side is outside: the geometric normal is flipped to their side, so a mesh whose
-    /// winding disagrees with its normals still has a consistent outside (which glass needs).
-    fn mesh_shading(&self, mesh: u32, face: u32, b: Vec2, n: Vec3A) -> (Vec3A, Vec3A, Vec2) {
-        let Some(m) = self.meshes.get(mesh as usize) else { return (n, n, b) };
+    /// Geometric normal, interpolated shading normal, and the texture coordinates with `∂p/∂u`, `∂p/∂v` when the
+    /// mesh has them, at barycentrics `b` of a mesh face. The mesh's normals say which side is outside: the
+    /// geometric normal is flipped to their side, so a mesh whose winding disagrees with its normals still has a
+    /// consistent outside (which glass needs).
+    #[allow(clippy::type_complexity)]
+    fn mesh_shading(&self, tri: &shapes::Triangle, b: Vec2, n: Vec3A) -> (Vec3A, Vec3A, Option<(Vec2, Vec3A, Vec3A)>) {
+        let face = tri.face;
+        let Some(m) = self.meshes.get(tri.mesh as usize) else { return (n, n, None) };
         let w = [1.0 - b.x - b.y, b.x, b.y];
         let (n, ns) = match m.normal_indices.get(face as usize) {
             Some(ix) => {
@@ -201,10 +215,27 @@ impl Geometry {
             }
             None => (n, n),
         };
-        let uv = match m.uv_indices.get(face as usize) {
-            Some(ix) => (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * Vec2::from_array(m.uvs[ix[k] as usize])),
-            None => b,
-        };
+        let uv = m.uv_indices.get(face as usize).map(|ix| {
+            let c = ix.map(|k| Vec2::from_array(m.uvs[k as usize]));
+            let uv = (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * c[k]);
+            let (dpdu, dpdv) = uv_derivatives(&tri.p, &c);
+            (uv, dpdu, dpdv)
+        });
         (n, ns, uv)
     }
+}
+
+/// `∂p/∂u` and `∂p/∂v` of a triangle with corners `p` and texture coordinates `uv`, from
+/// `p_i − p_2 = (u_i − u_2)·∂p/∂u + (v_i − v_2)·∂p/∂v` for i = 0, 1 (pbrt-v4 §6.5.3, eq. 6.7). Degenerate
+/// coordinates (all on a line) give the triangle's edges instead.
+fn uv_derivatives(p: &[glam::Vec3; 3], uv: &[Vec2; 3]) -> (Vec3A, Vec3A) {
+    let [p0, p1, p2] = p.map(Vec3A::from);
+    let (d02, d12) = (uv[0] - uv[2], uv[1] - uv[2]);
+    let (dp02, dp12) = (p0 - p2, p1 - p2);
+    let det = d02.x * d12.y - d02.y * d12.x;
+    if det.abs() < 1e-12 || !det.is_finite() {
+        return (p1 - p0, p2 - p0);
+    }
+    let inv = 1.0 / det;
+    ((d12.y * dp02 - d02.y * dp12) * inv, (d02.x * dp12 - d12.x * dp02) * inv)
 }

@@ -82,8 +82,12 @@ pub struct LocalHit {
     pub p_error: Vec3A,
     /// Geometric unit normal, as defined by the shape (not flipped towards the ray).
     pub n: Vec3A,
-    /// Surface parameters: `(u, v)` on rectangles and spheres, barycentrics `(b1, b2)` on triangles.
+    /// Surface parameters: `(u, v)` on rectangles, spheres and planes, barycentrics `(b1, b2)` on triangles.
     pub uv: Vec2,
+    /// `∂p/∂u`: how the point moves per unit of `u` (scene units).
+    pub dpdu: Vec3A,
+    /// `∂p/∂v`.
+    pub dpdv: Vec3A,
 }
 
 impl Sphere {
@@ -143,9 +147,31 @@ impl Sphere {
         // A hit has |v| ≈ r > 0; the guard keeps a degenerate ray from dividing by zero.
         let unit = if len > 0.0 { v.map(|x| x / len) } else { [0.0, 1.0, 0.0] };
         let (p, p_error, n) = self.point_at(unit);
-        let u = 0.5 + fmath::atan2(n.z, n.x) / (2.0 * std::f32::consts::PI);
-        let v = fmath::acos(n.y.clamp(-1.0, 1.0)) / std::f32::consts::PI;
-        LocalHit { p, p_error, n, uv: Vec2::new(u, v) }
+        let (uv, dpdu, dpdv) = self.uv_at(n);
+        LocalHit { p, p_error, n, uv, dpdu, dpdv }
+    }
+
+    /// Longitude-latitude coordinates of the point with unit normal `n` and the partial derivatives of the
+    /// point: `u = ½ − φ/2π` with `φ = atan2(n_z, n_x)`, `v = 1 − θ/π` with `θ = acos(n_y)`, so `v` runs from the
+    /// south pole (−y, 0) to the north pole (+y, 1) and, seen from outside with +y up, `u` increases to the right
+    /// (an image is upright and not mirrored). With `p = c + r(sin θ cos φ, cos θ, sin θ sin φ)`:
+    /// `∂p/∂u = 2πr(n_z, 0, −n_x)` and `∂p/∂v = πr(−cos θ cos φ, sin θ, −cos θ sin φ)`, whose cross product points
+    /// outwards (pbrt-v4 §6.2.2 with y as the polar axis).
+    fn uv_at(&self, n: Vec3A) -> (Vec2, Vec3A, Vec3A) {
+        use std::f32::consts::PI;
+        let u = 0.5 - fmath::atan2(n.z, n.x) / (2.0 * PI);
+        let v = 1.0 - fmath::acos(n.y.clamp(-1.0, 1.0)) / PI;
+        let r = self.radius;
+        let dpdu = Vec3A::new(n.z, 0.0, -n.x) * (2.0 * PI * r);
+        let sin_theta = (n.x * n.x + n.z * n.z).sqrt();
+        let dpdv = if sin_theta > 0.0 {
+            let k = n.y / sin_theta;
+            Vec3A::new(-k * n.x, sin_theta, -k * n.z) * (PI * r)
+        } else {
+            // At a pole any direction in the tangent plane will do.
+            Vec3A::new(PI * r, 0.0, 0.0)
+        };
+        (Vec2::new(u, v), dpdu, dpdv)
     }
 
     /// The point `c + unit·r` of the sphere for an f64 unit vector, rounded once to f32, with its error bound
@@ -213,7 +239,7 @@ impl Rect {
         let b = d.dot(v) / v.length_squared();
         // The error of `a` and `b` only slides the point within the plane.
         let (p, p_error) = self.point_at(a, b);
-        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(a, b) }
+        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(a, b), dpdu: u, dpdv: v }
     }
 
     /// The point `corner + a·u + b·v` and its error bound: on the plane up to the rounding of two products and
@@ -383,7 +409,9 @@ impl Triangle {
             |h| (h.1, h.2),
         );
         let (p, p_error) = self.point_at(b1, b2);
-        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(b1, b2) }
+        let p0 = Vec3A::from(self.p[0]);
+        let (dpdu, dpdv) = (Vec3A::from(self.p[1]) - p0, Vec3A::from(self.p[2]) - p0);
+        LocalHit { p, p_error, n: self.normal(), uv: Vec2::new(b1, b2), dpdu, dpdv }
     }
 
     /// The point at barycentrics `(b1, b2)` and its error bound.
@@ -437,7 +465,7 @@ impl Plane {
         let (sa, tb) = (a * f.s, b * f.t);
         let p = q + sa + tb;
         let p_error = gamma(3) * (q.abs() + sa.abs() + tb.abs()) + gamma(4) * (a.abs() + b.abs()) * n.abs();
-        LocalHit { p, p_error, n, uv: Vec2::new(a, b) }
+        LocalHit { p, p_error, n, uv: Vec2::new(a, b), dpdu: f.s, dpdv: f.t }
     }
 }
 

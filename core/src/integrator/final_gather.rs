@@ -32,7 +32,7 @@ pub fn indirect(
         if bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
             continue;
         }
-        let w = bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
         let vp = visible_point(prep, settings.max_depth, hit.spawn_ray(bs.wi), s, rays);
         if let Some((b, h2, bsdf2, wo2)) = vp.vertex {
             sum += w * b * gathered_radiance(maps, &h2, &bsdf2, wo2);

@@ -75,7 +75,8 @@ pub fn sample_one_light(
     if !unoccluded(prep, hit, ls.wi, ls.p) {
         return Rgb::ZERO;
     }
-    let cos = ls.wi.dot(hit.ns).abs();
+    // The BSDF's shading normal: a bump or normal map bends it away from `hit.ns`.
+    let cos = ls.wi.dot(bsdf.frame.n).abs();
     if ls.delta {
         f * ls.li * (cos / pmf)
     } else if !mis {
@@ -111,7 +112,7 @@ pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Samp
             le += beta * light.le(&hit, wo);
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
-        let bsdf = material.bsdf(&hit);
+        let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.has_non_delta() {
             return VisiblePoint { le, vertex: Some((beta, hit, bsdf, wo)) };
         }
@@ -120,7 +121,7 @@ pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Samp
         if bs.pdf.is_nan() || bs.pdf <= 0.0 {
             break;
         }
-        beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
         if !beta.is_finite() || beta == Rgb::ZERO {
             break;
         }

@@ -50,7 +50,7 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
             break;
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
-        let bsdf = material.bsdf(&hit);
+        let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.has_non_delta() {
             l += beta * sample_one_light(prep, &hit, &bsdf, wo, s, rays, true);
         }
@@ -59,7 +59,7 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
         if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
             break;
         }
-        beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
         prev_delta = bs.delta;
         prev_pdf = bs.pdf;
         if direct_only && !bs.delta {

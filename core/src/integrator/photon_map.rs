@@ -39,7 +39,7 @@ pub fn li(prep: &Prepared, maps: &PhotonMaps, ray: Ray, s: &mut Sampler, rays: &
         if !bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
             break;
         }
-        beta *= bs.f * (bs.wi.dot(hit.ns).abs() / bs.pdf);
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
         if !beta.is_finite() || beta == Rgb::ZERO {
             break;
         }

@@ -48,146 +48,14 @@
 //! Unknown fields are errors. [`Material::validate`] checks the ranges; the scene loader reports its message
 //! under the material's path.
 
-use crate::Rgb;
 pub mod bsdf;
+pub mod texture;
 
 use crate::error::FieldError;
 use crate::geometry::Hit;
 use bsdf::{Bsdf, Bxdf};
-use glam::{Vec2, Vec3A};
-use serde::de::{self, SeqAccess, Visitor};
-use serde::ser::SerializeSeq;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
-use std::fmt;
-
-/// A colour that may vary over a surface. In the scene file: a number (grey) or `[r, g, b]`.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Texture {
-    /// The same colour everywhere.
-    Constant(Rgb),
-}
-
-impl Texture {
-    /// A grey constant.
-    pub const fn grey(v: f32) -> Self {
-        Texture::Constant(Rgb::splat(v))
-    }
-
-    /// The colour at texture coordinates `uv` and point `p`.
-    #[inline]
-    pub fn eval(&self, uv: Vec2, p: Vec3A) -> Rgb {
-        let _ = (uv, p);
-        match self {
-            Texture::Constant(c) => *c,
-        }
-    }
-
-    /// The largest value of any channel anywhere.
-    pub fn max_value(&self) -> f32 {
-        match self {
-            Texture::Constant(c) => c.max_element(),
-        }
-    }
-
-    /// Checks that the texture is a reflectance: every value finite and in `[0, 1]`. The error names `field`.
-    pub fn validate_reflectance(&self, field: &str) -> Result<(), FieldError> {
-        match self {
-            Texture::Constant(c) => {
-                if c.to_array().iter().all(|v| v.is_finite() && (0.0..=1.0).contains(v)) {
-                    Ok(())
-                } else {
-                    Err(FieldError::new(field, format!("expected values in [0, 1], got [{}, {}, {}]", c.x, c.y, c.z)))
-                }
-            }
-        }
-    }
-}
-
-impl From<f32> for Texture {
-    fn from(v: f32) -> Self {
-        Texture::grey(v)
-    }
-}
-
-impl From<[f32; 3]> for Texture {
-    fn from(c: [f32; 3]) -> Self {
-        Texture::Constant(Rgb::from_array(c))
-    }
-}
-
-/// The binary form of [`Texture`] (serde's default enum representation, which bincode can read).
-#[derive(Serialize, Deserialize)]
-enum TextureBinary {
-    Constant([f32; 3]),
-}
-
-impl Serialize for Texture {
-    /// In text formats a grey constant as a number, any other constant as `[r, g, b]`; in binary formats a
-    /// plain enum.
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        match self {
-            Texture::Constant(c) if !s.is_human_readable() => TextureBinary::Constant(c.to_array()).serialize(s),
-            Texture::Constant(c) if c.x == c.y && c.y == c.z => s.serialize_f32(c.x),
-            Texture::Constant(c) => {
-                let mut seq = s.serialize_seq(Some(3))?;
-                for v in c.to_array() {
-                    seq.serialize_element(&v)?;
-                }
-                seq.end()
-            }
-        }
-    }
-}
-
-impl<'de> Deserialize<'de> for Texture {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        if d.is_human_readable() {
-            d.deserialize_any(TextureVisitor)
-        } else {
-            match TextureBinary::deserialize(d)? {
-                TextureBinary::Constant(c) => Ok(Texture::from(c)),
-            }
-        }
-    }
-}
-
-/// Reads a number or an `[r, g, b]` array.
-struct TextureVisitor;
-
-impl<'de> Visitor<'de> for TextureVisitor {
-    type Value = Texture;
-
-    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-        f.write_str("a number or an [r, g, b] array")
-    }
-
-    fn visit_f64<E: de::Error>(self, v: f64) -> Result<Texture, E> {
-        Ok(Texture::grey(v as f32))
-    }
-
-    fn visit_i64<E: de::Error>(self, v: i64) -> Result<Texture, E> {
-        Ok(Texture::grey(v as f32))
-    }
-
-    fn visit_u64<E: de::Error>(self, v: u64) -> Result<Texture, E> {
-        Ok(Texture::grey(v as f32))
-    }
-
-    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Texture, A::Error> {
-        let mut c = [0.0f32; 3];
-        for (i, v) in c.iter_mut().enumerate() {
-            *v = seq.next_element()?.ok_or_else(|| de::Error::invalid_length(i, &self))?;
-        }
-        let mut extra = 0;
-        while seq.next_element::<de::IgnoredAny>()?.is_some() {
-            extra += 1;
-        }
-        if extra > 0 {
-            return Err(de::Error::invalid_length(3 + extra, &self));
-        }
-        Ok(Texture::from(c))
-    }
-}
+pub use texture::{BumpMap, ImageRef, NormalMap, TexelImage, Texture};
 
 /// A surface material, exactly as a `[materials.NAME]` table declares it (see the module docs).
 ///
@@ -202,6 +70,12 @@ pub enum Material {
         /// Reflectance (default 0.8).
         #[serde(default = "default_albedo")]
         albedo: Texture,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
     },
     /// Modified Phong: a diffuse and an energy-conserving glossy lobe.
     Phong {
@@ -214,12 +88,24 @@ pub enum Material {
         /// Phong exponent n ≥ 0 (default 20): larger is shinier.
         #[serde(default = "default_phong_exponent")]
         exponent: f32,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
     },
     /// A perfect mirror.
     Mirror {
         /// Reflectance (default 1).
         #[serde(default = "default_one")]
         reflectance: Texture,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
     },
     /// Smooth glass.
     Dielectric {
@@ -229,6 +115,12 @@ pub enum Material {
         /// Multiplies reflected and transmitted light (default 1).
         #[serde(default = "default_one")]
         tint: Texture,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
     },
     /// The original renderer's mixture of diffuse, mirror and glass; the rest of the weight is absorbed.
     Mix {
@@ -247,13 +139,19 @@ pub enum Material {
         /// Index of refraction of the glass, inside over outside (default 1.5).
         #[serde(default = "default_eta")]
         eta: f32,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
     },
 }
 
-/// The binary form of [`Material`]: the same fields in declaration order, in serde's default (externally
-/// tagged) enum representation.
+/// The binary form of [`Material`]: the lobes' fields in declaration order, in serde's default (externally
+/// tagged) enum representation, then the bump and normal maps.
 #[derive(Serialize, Deserialize)]
-enum MaterialBinary {
+enum LobesBinary {
     Lambert(Texture),
     Phong(Texture, Texture, f32),
     Mirror(Texture),
@@ -261,22 +159,26 @@ enum MaterialBinary {
     Mix(Texture, f32, f32, f32, f32),
 }
 
+#[derive(Serialize, Deserialize)]
+struct MaterialBinary(LobesBinary, Option<BumpMap>, Option<NormalMap>);
+
 impl Serialize for Material {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         if s.is_human_readable() {
             // The derived scene-file form (`remote = "Self"` makes it an inherent function).
             return Material::serialize(self, s);
         }
-        match self.clone() {
-            Material::Lambert { albedo } => MaterialBinary::Lambert(albedo),
-            Material::Phong { diffuse, specular, exponent } => MaterialBinary::Phong(diffuse, specular, exponent),
-            Material::Mirror { reflectance } => MaterialBinary::Mirror(reflectance),
-            Material::Dielectric { eta, tint } => MaterialBinary::Dielectric(eta, tint),
-            Material::Mix { color, diffuse, specular, transmission, eta } => {
-                MaterialBinary::Mix(color, diffuse, specular, transmission, eta)
+        let (bump, normal_map) = (self.bump().cloned(), self.normal_map().cloned());
+        let lobes = match self.clone() {
+            Material::Lambert { albedo, .. } => LobesBinary::Lambert(albedo),
+            Material::Phong { diffuse, specular, exponent, .. } => LobesBinary::Phong(diffuse, specular, exponent),
+            Material::Mirror { reflectance, .. } => LobesBinary::Mirror(reflectance),
+            Material::Dielectric { eta, tint, .. } => LobesBinary::Dielectric(eta, tint),
+            Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
+                LobesBinary::Mix(color, diffuse, specular, transmission, eta)
             }
-        }
-        .serialize(s)
+        };
+        MaterialBinary(lobes, bump, normal_map).serialize(s)
     }
 }
 
@@ -285,13 +187,16 @@ impl<'de> Deserialize<'de> for Material {
         if d.is_human_readable() {
             return Material::deserialize(d);
         }
-        Ok(match MaterialBinary::deserialize(d)? {
-            MaterialBinary::Lambert(albedo) => Material::Lambert { albedo },
-            MaterialBinary::Phong(diffuse, specular, exponent) => Material::Phong { diffuse, specular, exponent },
-            MaterialBinary::Mirror(reflectance) => Material::Mirror { reflectance },
-            MaterialBinary::Dielectric(eta, tint) => Material::Dielectric { eta, tint },
-            MaterialBinary::Mix(color, diffuse, specular, transmission, eta) => {
-                Material::Mix { color, diffuse, specular, transmission, eta }
+        let MaterialBinary(lobes, bump, normal_map) = MaterialBinary::deserialize(d)?;
+        Ok(match lobes {
+            LobesBinary::Lambert(albedo) => Material::Lambert { albedo, bump, normal_map },
+            LobesBinary::Phong(diffuse, specular, exponent) => {
+                Material::Phong { diffuse, specular, exponent, bump, normal_map }
+            }
+            LobesBinary::Mirror(reflectance) => Material::Mirror { reflectance, bump, normal_map },
+            LobesBinary::Dielectric(eta, tint) => Material::Dielectric { eta, tint, bump, normal_map },
+            LobesBinary::Mix(color, diffuse, specular, transmission, eta) => {
+                Material::Mix { color, diffuse, specular, transmission, eta, bump, normal_map }
             }
         })
     }
@@ -324,7 +229,7 @@ fn default_eta() -> f32 {
 impl Default for Material {
     /// Grey Lambert with albedo 0.8.
     fn default() -> Self {
-        Material::Lambert { albedo: default_albedo() }
+        Material::Lambert { albedo: default_albedo(), bump: None, normal_map: None }
     }
 }
 
@@ -337,9 +242,21 @@ impl Material {
     /// Checks every parameter's range. The error names the parameter (`albedo`); the scene loader places it
     /// under the material's path.
     pub fn validate(&self) -> Result<(), FieldError> {
+        if let Some(b) = self.bump() {
+            b.image.validate("bump")?;
+            if !b.strength.is_finite() {
+                return Err(FieldError::new("bump.strength", format!("expected a finite number, got {}", b.strength)));
+            }
+        }
+        if let Some(n) = self.normal_map() {
+            n.image.validate("normal_map")?;
+        }
+        if self.bump().is_some() && self.normal_map().is_some() {
+            return Err(FieldError::new("normal_map", "a material takes a bump map or a normal map, not both"));
+        }
         match self {
-            Material::Lambert { albedo } => albedo.validate_reflectance("albedo"),
-            Material::Phong { diffuse, specular, exponent } => {
+            Material::Lambert { albedo, .. } => albedo.validate_reflectance("albedo"),
+            Material::Phong { diffuse, specular, exponent, .. } => {
                 diffuse.validate_reflectance("diffuse")?;
                 specular.validate_reflectance("specular")?;
                 if !(exponent.is_finite() && (0.0..=MAX_PHONG_EXPONENT).contains(exponent)) {
@@ -351,28 +268,27 @@ impl Material {
                         ),
                     ));
                 }
-                match (diffuse, specular) {
-                    (Texture::Constant(kd), Texture::Constant(ks)) => {
-                        let sum = *kd + *ks;
-                        if sum.max_element() > 1.0 {
-                            return Err(FieldError::new(
-                                "specular",
-                                format!(
-                                    "diffuse + specular = [{}, {}, {}] exceeds 1: the material would create energy",
-                                    sum.x, sum.y, sum.z
-                                ),
-                            ));
-                        }
+                // Where either varies, the glossy part is cut to `1 − kd` per point (see `bsdf`).
+                if let (Texture::Constant(kd), Texture::Constant(ks)) = (diffuse, specular) {
+                    let sum = *kd + *ks;
+                    if sum.max_element() > 1.0 {
+                        return Err(FieldError::new(
+                            "specular",
+                            format!(
+                                "diffuse + specular = [{}, {}, {}] exceeds 1: the material would create energy",
+                                sum.x, sum.y, sum.z
+                            ),
+                        ));
                     }
                 }
                 Ok(())
             }
-            Material::Mirror { reflectance } => reflectance.validate_reflectance("reflectance"),
-            Material::Dielectric { eta, tint } => {
+            Material::Mirror { reflectance, .. } => reflectance.validate_reflectance("reflectance"),
+            Material::Dielectric { eta, tint, .. } => {
                 validate_eta(*eta)?;
                 tint.validate_reflectance("tint")
             }
-            Material::Mix { color, diffuse, specular, transmission, eta } => {
+            Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 color.validate_reflectance("color")?;
                 for (name, w) in [("diffuse", diffuse), ("specular", specular), ("transmission", transmission)] {
                     if !(w.is_finite() && *w >= 0.0) {
@@ -394,26 +310,107 @@ impl Material {
         }
     }
 
-    /// The BSDF at a hit: textures evaluated at `hit.uv`, `hit.p`; shading frame from `hit.ns`; `hit.n` kept to
-    /// tell the inside of glass from the outside.
-    pub fn bsdf(&self, hit: &Hit) -> Bsdf {
-        let (uv, p) = (hit.uv, hit.p);
-        let bxdf = match self {
-            Material::Lambert { albedo } => Bxdf::Lambert { r: albedo.eval(uv, p) },
-            Material::Phong { diffuse, specular, exponent } => {
-                Bxdf::Phong { kd: diffuse.eval(uv, p), ks: specular.eval(uv, p), exponent: *exponent }
+    /// The bump map, if any.
+    pub fn bump(&self) -> Option<&BumpMap> {
+        match self {
+            Material::Lambert { bump, .. }
+            | Material::Phong { bump, .. }
+            | Material::Mirror { bump, .. }
+            | Material::Dielectric { bump, .. }
+            | Material::Mix { bump, .. } => bump.as_ref(),
+        }
+    }
+
+    /// The normal map, if any.
+    pub fn normal_map(&self) -> Option<&NormalMap> {
+        match self {
+            Material::Lambert { normal_map, .. }
+            | Material::Phong { normal_map, .. }
+            | Material::Mirror { normal_map, .. }
+            | Material::Dielectric { normal_map, .. }
+            | Material::Mix { normal_map, .. } => normal_map.as_ref(),
+        }
+    }
+
+    /// Every colour of the material with its field name, in declaration order.
+    pub fn colors(&self) -> Vec<(&'static str, &Texture)> {
+        match self {
+            Material::Lambert { albedo, .. } => vec![("albedo", albedo)],
+            Material::Phong { diffuse, specular, .. } => vec![("diffuse", diffuse), ("specular", specular)],
+            Material::Mirror { reflectance, .. } => vec![("reflectance", reflectance)],
+            Material::Dielectric { tint, .. } => vec![("tint", tint)],
+            Material::Mix { color, .. } => vec![("color", color)],
+        }
+    }
+
+    /// Every image the material reads, with its field (`albedo`, `bump`, `normal_map`) and the colour space
+    /// its integer texels are decoded with, in a fixed order: colours in declaration order, then the bump or
+    /// normal map. Mutable, so that preparing the scene can set each image's slot.
+    pub fn images_mut(&mut self) -> Vec<(&'static str, &mut ImageRef)> {
+        let (colors, bump, normal_map): (Vec<(&'static str, &mut Texture)>, _, _) = match self {
+            Material::Lambert { albedo, bump, normal_map } => (vec![("albedo", albedo)], bump, normal_map),
+            Material::Phong { diffuse, specular, bump, normal_map, .. } => {
+                (vec![("diffuse", diffuse), ("specular", specular)], bump, normal_map)
             }
-            Material::Mirror { reflectance } => Bxdf::Mirror { r: reflectance.eval(uv, p) },
-            Material::Dielectric { eta, tint } => Bxdf::Dielectric { eta: *eta, tint: tint.eval(uv, p) },
-            Material::Mix { color, diffuse, specular, transmission, eta } => Bxdf::Mix {
-                color: color.eval(uv, p),
+            Material::Mirror { reflectance, bump, normal_map } => {
+                (vec![("reflectance", reflectance)], bump, normal_map)
+            }
+            Material::Dielectric { tint, bump, normal_map, .. } => (vec![("tint", tint)], bump, normal_map),
+            Material::Mix { color, bump, normal_map, .. } => (vec![("color", color)], bump, normal_map),
+        };
+        let mut out: Vec<(&'static str, &mut ImageRef)> =
+            colors.into_iter().filter_map(|(n, t)| t.image_mut().map(|r| (n, r))).collect();
+        if let Some(b) = bump {
+            out.push(("bump", &mut b.image));
+        }
+        if let Some(n) = normal_map {
+            out.push(("normal_map", &mut n.image));
+        }
+        out
+    }
+
+    /// Whether the material reads texture coordinates (an image or checker colour, a bump or normal map).
+    pub fn needs_uv(&self) -> bool {
+        self.colors().iter().any(|(_, t)| t.needs_uv()) || self.bump().is_some() || self.normal_map().is_some()
+    }
+
+    /// The shading normal at a hit: `hit.ns`, bent by the bump or normal map when there is one.
+    #[inline]
+    pub fn shading_normal(&self, hit: &Hit, images: &[TexelImage]) -> glam::Vec3A {
+        if let Some(b) = self.bump() {
+            b.perturb(images, hit.uv, hit.ns, hit.dpdu, hit.dpdv)
+        } else if let Some(n) = self.normal_map() {
+            n.perturb(images, hit.uv, hit.ns, hit.dpdu, hit.dpdv)
+        } else {
+            hit.ns
+        }
+    }
+
+    /// The BSDF at a hit: textures evaluated at `hit.uv`, `hit.p` from `images` (the prepared scene's texture
+    /// list); shading frame from `hit.ns`, bent by a bump or normal map; `hit.n` kept to tell the inside of
+    /// glass from the outside and to keep light from leaking through the surface (see [`bsdf`]).
+    pub fn bsdf(&self, hit: &Hit, images: &[TexelImage]) -> Bsdf {
+        let (uv, p) = (hit.uv, hit.p);
+        let eval = |t: &Texture| t.eval(uv, p, images);
+        let bxdf = match self {
+            Material::Lambert { albedo, .. } => Bxdf::Lambert { r: eval(albedo) },
+            Material::Phong { diffuse, specular, exponent, .. } => {
+                let kd = eval(diffuse);
+                // Textured lobes may sum above 1 at a point: the glossy part gives way (energy conservation).
+                let ks = eval(specular).min(crate::Rgb::ONE - kd);
+                Bxdf::Phong { kd, ks, exponent: *exponent }
+            }
+            Material::Mirror { reflectance, .. } => Bxdf::Mirror { r: eval(reflectance) },
+            Material::Dielectric { eta, tint, .. } => Bxdf::Dielectric { eta: *eta, tint: eval(tint) },
+            Material::Mix { color, diffuse, specular, transmission, eta, .. } => Bxdf::Mix {
+                color: eval(color),
                 diffuse: *diffuse,
                 specular: *specular,
                 transmission: *transmission,
                 eta: *eta,
             },
         };
-        Bsdf::new(hit.ns, hit.n, bxdf)
+        Bsdf::new(self.shading_normal(hit, images), hit.n, bxdf)
     }
 
     /// Whether the material has a delta (perfectly specular: mirror or glass) component, so that caustic paths
@@ -457,7 +454,9 @@ fn validate_eta(eta: f32) -> Result<(), FieldError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Rgb;
     use crate::math::fmath;
+    use glam::{Vec2, Vec3A};
     use std::collections::BTreeMap;
 
     #[derive(Debug, Deserialize, Serialize, PartialEq)]
@@ -484,8 +483,14 @@ mod tests {
         for mat in m.values() {
             mat.validate().unwrap();
         }
-        assert_eq!(m["red"], Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]) });
-        assert_eq!(m["glass"], Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0) });
+        assert_eq!(
+            m["red"],
+            Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]), bump: None, normal_map: None }
+        );
+        assert_eq!(
+            m["glass"],
+            Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), bump: None, normal_map: None }
+        );
     }
 
     #[test]
@@ -498,13 +503,27 @@ mod tests {
         assert_eq!(m["a"], Material::default());
         assert_eq!(
             m["b"],
-            Material::Phong { diffuse: Texture::grey(0.5), specular: Texture::grey(0.3), exponent: 20.0 }
+            Material::Phong {
+                diffuse: Texture::grey(0.5),
+                specular: Texture::grey(0.3),
+                exponent: 20.0,
+                bump: None,
+                normal_map: None
+            }
         );
-        assert_eq!(m["c"], Material::Mirror { reflectance: Texture::grey(1.0) });
-        assert_eq!(m["d"], Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0) });
+        assert_eq!(m["c"], Material::Mirror { reflectance: Texture::grey(1.0), bump: None, normal_map: None });
+        assert_eq!(m["d"], Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), bump: None, normal_map: None });
         assert_eq!(
             m["e"],
-            Material::Mix { color: Texture::grey(0.8), diffuse: 0.0, specular: 0.0, transmission: 0.0, eta: 1.5 }
+            Material::Mix {
+                color: Texture::grey(0.8),
+                diffuse: 0.0,
+                specular: 0.0,
+                transmission: 0.0,
+                eta: 1.5,
+                bump: None,
+                normal_map: None
+            }
         );
         for mat in m.values() {
             mat.validate().unwrap();
@@ -516,15 +535,25 @@ mod tests {
         let m = parse("[materials.a]\ntype = \"phong\"\ndiffuse = 0\nspecular = [1, 0, 0]\nexponent = 100\n").unwrap();
         assert_eq!(
             m["a"],
-            Material::Phong { diffuse: Texture::grey(0.0), specular: Texture::from([1.0, 0.0, 0.0]), exponent: 100.0 }
+            Material::Phong {
+                diffuse: Texture::grey(0.0),
+                specular: Texture::from([1.0, 0.0, 0.0]),
+                exponent: 100.0,
+                bump: None,
+                normal_map: None
+            }
         );
     }
 
     #[test]
     fn bad_textures_say_what_was_expected() {
-        for bad in ["\"red\"", "[0.1, 0.2]", "[0.1, 0.2, 0.3, 0.4]", "{ r = 1 }"] {
+        for bad in ["\"red\"", "[0.1, 0.2]", "[0.1, 0.2, 0.3, 0.4]"] {
             let e = parse(&format!("[materials.a]\ntype = \"lambert\"\nalbedo = {bad}\n")).unwrap_err();
-            assert!(e.contains("expected a number or an [r, g, b] array"), "{bad}: {e}");
+            assert!(e.contains("expected a number, an [r, g, b] array"), "{bad}: {e}");
+        }
+        for (bad, needle) in [("{ r = 1 }", "unknown field `r`"), ("{}", "expected a number, an [r, g, b] array")] {
+            let e = parse(&format!("[materials.a]\ntype = \"lambert\"\nalbedo = {bad}\n")).unwrap_err();
+            assert!(e.contains(needle), "{bad}: {e}");
         }
     }
 
@@ -544,12 +573,22 @@ mod tests {
     fn round_trip() {
         let f = File {
             materials: BTreeMap::from([
-                ("a".into(), Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]) }),
-                ("b".into(), Material::Phong { diffuse: 0.2.into(), specular: 0.7.into(), exponent: 8.0 }),
                 (
-                    "c".into(),
-                    Material::Mix { color: 0.5.into(), diffuse: 0.1, specular: 0.2, transmission: 0.3, eta: 1.3 },
+                    "a".into(),
+                    Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]), bump: None, normal_map: None },
                 ),
+                (
+                    "b".into(),
+                    Material::Phong {
+                        diffuse: 0.2.into(),
+                        specular: 0.7.into(),
+                        exponent: 8.0,
+                        bump: None,
+                        normal_map: None,
+                    },
+                ),
+                ("c".into(), mix()),
+                ("d".into(), textured("wood.png", crate::geometry::NONE)),
             ]),
         };
         // Through a TOML value: the crate reads TOML but does not need to write it as text.
@@ -559,15 +598,50 @@ mod tests {
         assert_eq!(v.try_into::<File>().unwrap(), f);
     }
 
+    fn mix() -> Material {
+        Material::Mix {
+            color: 0.5.into(),
+            diffuse: 0.1,
+            specular: 0.2,
+            transmission: 0.3,
+            eta: 1.3,
+            bump: None,
+            normal_map: None,
+        }
+    }
+
+    /// A Phong material with a checker, an image and a bump map. The scene file names images by file, the
+    /// binary form by slot.
+    fn textured(file: &str, slot: u32) -> Material {
+        let image = ImageRef {
+            file: file.into(),
+            slot,
+            scale: glam::Vec2::new(2.0, 0.5),
+            offset: glam::Vec2::new(0.1, 0.0),
+            wrap: texture::Wrap::Clamp,
+            filter: texture::Filter::Nearest,
+            colorspace: Some(texture::ColorSpace::Linear),
+        };
+        Material::Phong {
+            diffuse: Texture::Checker { a: Rgb::splat(0.1), b: Rgb::new(0.5, 0.4, 0.3), scale: glam::Vec2::splat(4.0) },
+            specular: Texture::Image(image.clone()),
+            exponent: 30.0,
+            bump: Some(BumpMap { image, strength: -0.02 }),
+            normal_map: None,
+        }
+    }
+
     #[test]
     fn binary_round_trip() {
         // Prepared scenes travel to workers through bincode, which cannot read the scene file's internal tag.
         let all = vec![
-            Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]) },
-            Material::Phong { diffuse: 0.2.into(), specular: 0.7.into(), exponent: 8.0 },
-            Material::Mirror { reflectance: 0.9.into() },
-            Material::Dielectric { eta: 1.33, tint: [1.0, 0.9, 0.8].into() },
-            Material::Mix { color: 0.5.into(), diffuse: 0.1, specular: 0.2, transmission: 0.3, eta: 1.3 },
+            Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]), bump: None, normal_map: None },
+            Material::Phong { diffuse: 0.2.into(), specular: 0.7.into(), exponent: 8.0, bump: None, normal_map: None },
+            Material::Mirror { reflectance: 0.9.into(), bump: None, normal_map: None },
+            Material::Dielectric { eta: 1.33, tint: [1.0, 0.9, 0.8].into(), bump: None, normal_map: None },
+            mix(),
+            // The binary form carries an image's slot, not its file name.
+            textured("", 3),
         ];
         let bytes = crate::codec::encode(&all).unwrap();
         assert_eq!(crate::codec::decode::<Vec<Material>>(&bytes, bytes.len()).unwrap(), all);
@@ -576,25 +650,79 @@ mod tests {
     #[test]
     fn validation_names_the_field() {
         let cases = [
-            (Material::Lambert { albedo: 1.2.into() }, "albedo"),
-            (Material::Lambert { albedo: f32::NAN.into() }, "albedo"),
+            (Material::Lambert { albedo: 1.2.into(), bump: None, normal_map: None }, "albedo"),
+            (Material::Lambert { albedo: f32::NAN.into(), bump: None, normal_map: None }, "albedo"),
             (
-                Material::Phong { diffuse: 0.6.into(), specular: [0.5, 0.3, 0.3].into(), exponent: 10.0 },
+                Material::Phong {
+                    diffuse: 0.6.into(),
+                    specular: [0.5, 0.3, 0.3].into(),
+                    exponent: 10.0,
+                    bump: None,
+                    normal_map: None,
+                },
                 "diffuse + specular",
             ),
-            (Material::Phong { diffuse: 0.5.into(), specular: 0.3.into(), exponent: -1.0 }, "exponent"),
-            (Material::Phong { diffuse: 0.5.into(), specular: 0.3.into(), exponent: 1e30 }, "exponent"),
-            (Material::Mirror { reflectance: (-0.1).into() }, "reflectance"),
-            (Material::Dielectric { eta: 0.0, tint: 1.0.into() }, "eta"),
-            (Material::Dielectric { eta: 1.5, tint: f32::INFINITY.into() }, "tint"),
-            (Material::Mix { color: 0.5.into(), diffuse: 0.5, specular: 0.4, transmission: 0.3, eta: 1.5 }, "= 1.2"),
-            (Material::Mix { color: 0.5.into(), diffuse: -0.1, specular: 0.4, transmission: 0.3, eta: 1.5 }, "diffuse"),
+            (
+                Material::Phong {
+                    diffuse: 0.5.into(),
+                    specular: 0.3.into(),
+                    exponent: -1.0,
+                    bump: None,
+                    normal_map: None,
+                },
+                "exponent",
+            ),
+            (
+                Material::Phong {
+                    diffuse: 0.5.into(),
+                    specular: 0.3.into(),
+                    exponent: 1e30,
+                    bump: None,
+                    normal_map: None,
+                },
+                "exponent",
+            ),
+            (Material::Mirror { reflectance: (-0.1).into(), bump: None, normal_map: None }, "reflectance"),
+            (Material::Dielectric { eta: 0.0, tint: 1.0.into(), bump: None, normal_map: None }, "eta"),
+            (Material::Dielectric { eta: 1.5, tint: f32::INFINITY.into(), bump: None, normal_map: None }, "tint"),
+            (
+                Material::Mix {
+                    color: 0.5.into(),
+                    diffuse: 0.5,
+                    specular: 0.4,
+                    transmission: 0.3,
+                    eta: 1.5,
+                    bump: None,
+                    normal_map: None,
+                },
+                "= 1.2",
+            ),
+            (
+                Material::Mix {
+                    color: 0.5.into(),
+                    diffuse: -0.1,
+                    specular: 0.4,
+                    transmission: 0.3,
+                    eta: 1.5,
+                    bump: None,
+                    normal_map: None,
+                },
+                "diffuse",
+            ),
         ];
         for (m, needle) in cases {
             let e = m.validate().unwrap_err();
             assert!(e.to_string().contains(needle), "{m:?}: {e}");
         }
-        let ok = Material::Mix { color: 0.5.into(), diffuse: 0.1, specular: 0.2, transmission: 0.7, eta: 1.5 };
+        let ok = Material::Mix {
+            color: 0.5.into(),
+            diffuse: 0.1,
+            specular: 0.2,
+            transmission: 0.7,
+            eta: 1.5,
+            bump: None,
+            normal_map: None,
+        };
         ok.validate().unwrap();
     }
 
@@ -610,17 +738,21 @@ mod tests {
             n: Vec3A::Z,
             ns,
             uv: Vec2::new(0.25, 0.5),
+            dpdu: Vec3A::X,
+            dpdv: Vec3A::Y,
             material: 0,
             light: NONE,
             object: 0,
             prim: PrimRef::Plane(0),
         };
-        let b = Material::Lambert { albedo: Texture::from([0.1, 0.2, 0.3]) }.bsdf(&hit);
+        let b =
+            Material::Lambert { albedo: Texture::from([0.1, 0.2, 0.3]), bump: None, normal_map: None }.bsdf(&hit, &[]);
         assert_eq!(b.bxdf, Bxdf::Lambert { r: Rgb::new(0.1, 0.2, 0.3) });
         assert_eq!((b.frame.n, b.ng), (ns, Vec3A::Z));
         // Glass seen from below the geometric normal is seen from inside: leaving into air refracts away from
         // the normal, so a ray at 30° inside leaves at asin(1.5·sin 30°) ≈ 48.6°.
-        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into() }.bsdf(&Hit { ns: Vec3A::Z, ..hit });
+        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into(), bump: None, normal_map: None }
+            .bsdf(&Hit { ns: Vec3A::Z, ..hit }, &[]);
         let wo = -Vec3A::new(0.5, 0.0, 0.75f32.sqrt());
         let s = glass.sample(wo, 0.999, Vec2::ZERO, TransportMode::Importance).unwrap();
         assert!(s.wi.z > 0.0 && (s.wi.x.abs() - 0.75).abs() < 1e-5, "{s:?}");
@@ -628,11 +760,19 @@ mod tests {
 
     #[test]
     fn component_queries() {
-        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into() };
+        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into(), bump: None, normal_map: None };
         assert!(glass.has_specular() && !glass.has_non_delta() && glass.is_transmissive());
         let lambert = Material::default();
         assert!(!lambert.has_specular() && lambert.has_non_delta() && !lambert.is_transmissive());
-        let mix = Material::Mix { color: 0.5.into(), diffuse: 0.5, specular: 0.2, transmission: 0.0, eta: 1.5 };
+        let mix = Material::Mix {
+            color: 0.5.into(),
+            diffuse: 0.5,
+            specular: 0.2,
+            transmission: 0.0,
+            eta: 1.5,
+            bump: None,
+            normal_map: None,
+        };
         assert!(mix.has_specular() && mix.has_non_delta() && !mix.is_transmissive());
     }
 }

@@ -8,9 +8,10 @@ use crate::codec::{self, CodecError};
 use crate::error::FieldError;
 use crate::geometry::Geometry;
 use crate::light::LightSet;
-use crate::material::Material;
+use crate::material::{Material, TexelImage};
 use crate::scene::RenderSettings;
 use serde::{Deserialize, Serialize};
+use std::sync::Arc;
 
 /// The scene blob, written from borrowed parts and read into owned ones (the same encoding).
 #[derive(Serialize)]
@@ -52,6 +53,9 @@ pub enum FrameError {
     /// A value the scene's validation would have refused (a frame made by hand, or corrupted).
     #[error("the frame's {0}")]
     Invalid(#[from] FieldError),
+    /// A texture blob that does not decode or check, or a material whose image slot has no texture blob.
+    #[error("textures: {0}")]
+    Textures(String),
 }
 
 impl Frame {
@@ -87,24 +91,41 @@ impl Prepared {
         codec::encode(&FrameRef { camera, settings })
     }
 
-    /// A prepared scene from its scene blob, a camera and settings, without photon maps.
+    /// The texture blobs, one per image slot: each image's texels, decoded once from its file.
+    pub fn encode_textures(&self) -> Result<Vec<Vec<u8>>, CodecError> {
+        self.textures.iter().map(codec::encode).collect()
+    }
+
+    /// A prepared scene from its scene blob, its decoded texture images, a camera and settings, without photon
+    /// maps.
     pub fn from_scene_blob(
         scene: &[u8],
+        textures: Arc<Vec<TexelImage>>,
         camera: Camera,
         settings: RenderSettings,
         limit: usize,
-    ) -> Result<Self, CodecError> {
+    ) -> Result<Self, FrameError> {
         let s: SceneOwned = codec::decode(scene, limit)?;
+        check_slots(&s.materials, textures.len())?;
         let (geometry, materials, lights) = (s.geometry, s.materials, s.lights);
-        Ok(Self { camera, geometry, materials, lights, settings, photons: None })
+        Ok(Self { camera, geometry, materials, lights, settings, photons: None, textures })
     }
 
-    /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes and a frame that
-    /// [`Frame::decode`] refuses.
-    pub fn from_blobs(scene: &[u8], photons: Option<&[u8]>, frame: &[u8], limit: usize) -> Result<Self, FrameError> {
+    /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes, a frame that
+    /// [`Frame::decode`] refuses, a texture blob that does not check ([`TexelImage::check`]) and a material whose
+    /// image slot has no texture.
+    pub fn from_blobs(
+        scene: &[u8],
+        photons: Option<&[u8]>,
+        frame: &[u8],
+        textures: &[&[u8]],
+        limit: usize,
+    ) -> Result<Self, FrameError> {
         let s: SceneOwned = codec::decode(scene, limit)?;
         let f = Frame::decode(frame, limit)?;
         let photons = photons.map(|p| codec::decode(p, limit)).transpose()?;
+        let textures = decode_textures(textures, limit)?;
+        check_slots(&s.materials, textures.len())?;
         Ok(Self {
             camera: f.camera,
             geometry: s.geometry,
@@ -112,6 +133,33 @@ impl Prepared {
             lights: s.lights,
             settings: f.settings,
             photons,
+            textures: Arc::new(textures),
         })
     }
+}
+
+/// Decodes and checks texture blobs, each of at most `limit` bytes.
+pub fn decode_textures(blobs: &[&[u8]], limit: usize) -> Result<Vec<TexelImage>, FrameError> {
+    blobs
+        .iter()
+        .enumerate()
+        .map(|(i, b)| {
+            let img: TexelImage =
+                codec::decode(b, limit).map_err(|e| FrameError::Textures(format!("texture {i}: {e}")))?;
+            img.check().map_err(|e| FrameError::Textures(format!("texture {i}: {e}")))?;
+            Ok(img)
+        })
+        .collect()
+}
+
+/// Refuses a material whose image slot is not below `n`.
+fn check_slots(materials: &[Material], n: usize) -> Result<(), FrameError> {
+    for (i, m) in materials.iter().enumerate() {
+        for (field, r) in m.clone().images_mut() {
+            if r.slot as usize >= n {
+                return Err(FrameError::Textures(format!("material {i}'s {field} reads texture {} of {n}", r.slot)));
+            }
+        }
+    }
+    Ok(())
 }

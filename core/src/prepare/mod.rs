@@ -6,14 +6,15 @@
 pub mod blobs;
 pub mod budget;
 pub mod photons;
+pub mod textures;
 
 use crate::Rgb;
 use crate::camera::Camera;
 use crate::geometry::mesh::Normals;
 use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
-use crate::geometry::{Geometry, NONE, PlanePrimitive, Primitive};
+use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
 use crate::light::{Light, LightSet};
-use crate::material::Material;
+use crate::material::{Material, TexelImage};
 use crate::photon::{Estimator, Gather, PhotonMaps};
 use crate::scene::{Emission, GatherMode, Integrator, LightSpec, Object, RenderSettings, Scene, SceneError};
 use glam::Vec3A;
@@ -34,6 +35,10 @@ pub struct Prepared {
     pub settings: RenderSettings,
     /// Photon maps, when the method needs them.
     pub photons: Option<PhotonMaps>,
+    /// The texture images, indexed by the materials' image slots ([`textures`]). They travel as their own
+    /// blobs, not with the scene.
+    #[serde(skip)]
+    pub textures: std::sync::Arc<Vec<TexelImage>>,
 }
 
 impl Prepared {
@@ -41,7 +46,7 @@ impl Prepared {
     /// scene; `scene_path` names the scene in errors. Photon maps are a separate step
     /// ([`Prepared::with_photon_maps`]): `photons` is `None` here.
     pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
-        let materials: Vec<Material> = scene.materials.values().cloned().collect();
+        let (materials, images) = textures::load(scene, scene_path)?;
         let (mut geometry, emitters) = geometry(scene, scene_path)?;
         check_photon_radius(scene, &geometry, scene_path)?;
         let lights = lights(scene, &mut geometry, &emitters);
@@ -52,6 +57,7 @@ impl Prepared {
             lights,
             settings: scene.render.clone(),
             photons: None,
+            textures: std::sync::Arc::new(images),
         })
     }
 
@@ -161,8 +167,19 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                 })?;
                 push(Shape::Rect(rect), emission)
             }
-            Object::Triangle { vertices, emission, .. } => {
-                push(Shape::Triangle(Triangle::new(vertices[0], vertices[1], vertices[2])), emission)
+            Object::Triangle { vertices, emission, uv, .. } => {
+                let mut tri = Triangle::new(vertices[0], vertices[1], vertices[2]);
+                if let Some(uv) = uv {
+                    // Its texture coordinates travel as a one-face mesh's.
+                    tri.mesh = meshes.len() as u32;
+                    tri.face = 0;
+                    meshes.push(MeshShading {
+                        uvs: uv.to_vec(),
+                        uv_indices: vec![[0, 1, 2]],
+                        ..MeshShading::default()
+                    });
+                }
+                push(Shape::Triangle(tri), emission)
             }
             Object::Mesh { file, transform, emission, smooth, crease_angle, .. } => {
                 let path = scene.base_dir.join(file);
@@ -172,6 +189,22 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                     crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals, limit).map_err(|source| {
                         SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
                     })?;
+                if mesh.shading.uv_indices.is_empty()
+                    && let Some(m) = scene.materials.get(o.material())
+                    && m.needs_uv()
+                {
+                    return Err(SceneError::Invalid {
+                        path: scene_path.into(),
+                        line: None,
+                        field: format!("objects[{i}].file"),
+                        message: format!(
+                            "{} has no texture coordinates (`vt` lines), which material `{}` needs for its \
+                             textures",
+                            path.display(),
+                            o.material()
+                        ),
+                    });
+                }
                 let mesh_index = meshes.len() as u32;
                 for (face, t) in mesh.triangles.iter().enumerate() {
                     let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };

@@ -141,7 +141,7 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
     for depth in 0..prep.settings.max_depth {
         let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { return };
         let Some(material) = prep.materials.get(hit.material as usize) else { return };
-        let bsdf = material.bsdf(&hit);
+        let bsdf = material.bsdf(&hit, &prep.textures);
         let wo = -ray.d;
         if bsdf.has_non_delta() {
             let keep = match kind {

@@ -80,12 +80,19 @@ pub struct Limits {
     /// The largest mesh file read, in MiB; default 2048.
     #[serde(default = "default_mesh_mib")]
     pub mesh_mib: u64,
+    /// The largest texture image read, in MiB, both as a file and decoded; default 1024.
+    #[serde(default = "default_texture_mib")]
+    pub texture_mib: u64,
 }
 
 impl Default for Limits {
     fn default() -> Self {
-        Self { mesh_mib: default_mesh_mib() }
+        Self { mesh_mib: default_mesh_mib(), texture_mib: default_texture_mib() }
     }
+}
+
+fn default_texture_mib() -> u64 {
+    crate::input::DEFAULT_TEXTURE_MIB
 }
 
 fn default_mesh_mib() -> u64 {
@@ -148,6 +155,17 @@ pub enum SceneError {
         /// The cause.
         source: crate::photon::PhotonMapError,
     },
+    /// A texture image could not be loaded.
+    Texture {
+        /// The scene file.
+        path: PathBuf,
+        /// The field that names the image, e.g. `materials.wood.albedo.image`.
+        field: String,
+        /// The image file.
+        file: PathBuf,
+        /// The cause.
+        source: crate::material::texture::TextureError,
+    },
     /// A mesh could not be loaded.
     Mesh {
         /// The scene file.
@@ -180,6 +198,9 @@ impl std::fmt::Display for SceneError {
             }
             SceneError::Photons { path, source } => write!(f, "{}: render.photons: {source}", path.display()),
             SceneError::Mesh { path, field, source } => write!(f, "{}: {field}: {source}", path.display()),
+            SceneError::Texture { path, field, file, source } => {
+                write!(f, "{}: {field}: {}: {source}", path.display(), file.display())
+            }
         }
     }
 }

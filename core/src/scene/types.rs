@@ -426,6 +426,9 @@ pub enum Object {
     Triangle {
         /// The three vertices.
         vertices: [Vec3; 3],
+        /// Texture coordinates of the three vertices; default `[[0, 0], [1, 0], [0, 1]]`.
+        #[serde(default)]
+        uv: Option<[[f32; 2]; 3]>,
         /// Material name.
         material: String,
         /// Area light emission, if any.

@@ -83,9 +83,17 @@ impl Scene {
                 o.rect().map_err(|e| e.within(&format!("objects[{i}]")))?;
                 emission
             }
-            Object::Triangle { vertices, emission, .. } => {
+            Object::Triangle { vertices, emission, uv, .. } => {
                 for (k, v) in vertices.iter().enumerate() {
                     finite3(&f(&format!("vertices[{k}]")), *v)?;
+                }
+                for (k, c) in uv.iter().flatten().enumerate() {
+                    if !(c[0].is_finite() && c[1].is_finite()) {
+                        return Err(FieldError::new(
+                            f(&format!("uv[{k}]")),
+                            format!("expected finite numbers, got [{}, {}]", c[0], c[1]),
+                        ));
+                    }
                 }
                 // A triangle without area can never be hit: as a light it would silently emit nothing.
                 let [p0, p1, p2] = *vertices;

@@ -1,0 +1,73 @@
+//! The images a scene's materials read: each distinct file decoded once into a [`TexelImage`], given a slot in
+//! the prepared scene's texture list, and shipped to workers as its own content-addressed blob (so that a
+//! second render with another image on one object ships only that image; the scene blob holds slots, not
+//! texels).
+//!
+//! Slots follow the materials in name order and, within a material, its colours in declaration order, then
+//! its bump or normal map; a file read twice (the same path) has one slot. The order depends only on the scene
+//! text, so a scene blob from the cache and freshly decoded images always agree.
+
+use crate::material::Material;
+use crate::material::texture::{ColorSpace, TexelImage, decode_file};
+use crate::scene::{Scene, SceneError};
+use std::path::{Path, PathBuf};
+
+/// The distinct image files of `scene`'s materials in slot order, each with the field that first names it
+/// (`materials.wood.albedo`) for error messages.
+pub fn files(scene: &Scene) -> Vec<(PathBuf, String)> {
+    let mut out: Vec<(PathBuf, String)> = Vec::new();
+    for (name, m) in &scene.materials {
+        let mut m = m.clone();
+        for (field, r) in m.images_mut() {
+            let path = scene.base_dir.join(&r.file);
+            if !out.iter().any(|(p, _)| *p == path) {
+                out.push((path, format!("materials.{name}.{field}")));
+            }
+        }
+    }
+    out
+}
+
+/// The materials of `scene` in name order with every image's slot set, and the decoded images by slot.
+///
+/// # Errors
+/// [`SceneError::Texture`] naming the scene, the material's field and the file: the file cannot be read or
+/// decoded, is empty, has a side of 0 or over [`MAX_TEXTURE_SIDE`], or decodes to more than
+/// `limits.texture_mib`; float texels that are negative or not finite.
+pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
+    let files = files(scene);
+    let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
+    let mut images = Vec::with_capacity(files.len());
+    for (path, field) in &files {
+        let img = decode_file(path, limit).map_err(|source| SceneError::Texture {
+            path: scene_path.into(),
+            field: format!("{field}.image"),
+            file: path.clone(),
+            source,
+        })?;
+        images.push(img);
+    }
+    let mut materials: Vec<Material> = scene.materials.values().cloned().collect();
+    for (m, name) in materials.iter_mut().zip(scene.materials.keys()) {
+        for (field, r) in m.images_mut() {
+            let path = scene.base_dir.join(&r.file);
+            // `files` listed every path, so the position exists.
+            r.slot = files.iter().position(|(p, _)| *p == path).map_or(crate::geometry::NONE, |i| i as u32);
+            let is_colour = field != "bump" && field != "normal_map";
+            if let Some(img) = images.get(r.slot as usize)
+                && is_colour
+            {
+                let (max, over) = img.max_and_over_one(r.colorspace.unwrap_or(ColorSpace::Srgb));
+                if over > 0 {
+                    tracing::warn!(
+                        "{}: materials.{name}.{field}: {} has {over} texel values above 1 (largest {max}); a \
+                         reflectance reads them as 1",
+                        scene_path.display(),
+                        path.display()
+                    );
+                }
+            }
+        }
+    }
+    Ok((materials, images))
+}
