@@ -118,7 +118,7 @@ pub struct Simplified {
     /// meshoptimizer's error of the result, in scene units: the square root of the area-weighted mean squared
     /// distance from the collapsed vertices to the planes of the faces they replaced (Garland & Heckbert 1997,
     /// "Surface simplification using quadric error metrics"). An estimate of how far the surface moved, not a
-    /// hard bound on the largest distance (see `docs/RESULTS.md`, "Level of detail").
+    /// hard bound on the largest distance (see `docs/SCENE.md`, "Level of detail").
     pub error: f32,
 }
 
@@ -129,6 +129,10 @@ pub struct Simplified {
 /// (two normals at one position) is an attribute discontinuity: meshoptimizer collapses along such a seam only,
 /// never across it, and never moves or blends a vertex, so every output corner carries a normal and UV of the
 /// input. The same input gives the same output (the simplifier is sequential and deterministic).
+///
+/// Positions alone decide: weighing the normals in as attributes (`meshopt_simplifyWithAttributes`) keeps the
+/// shading of a near smooth mesh closer, but its term does not fade as triangles shrink below a pixel, so a far
+/// bumpy mesh would keep most of its triangles (docs/RESULTS.md, "Level of detail").
 pub fn simplify(mesh: &MeshData, bound: f32) -> Simplified {
     let sh = &mesh.shading;
     let has_normals = sh.normal_indices.len() == mesh.triangles.len() && !mesh.triangles.is_empty();
