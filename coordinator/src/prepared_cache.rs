@@ -8,7 +8,10 @@
 //!   (samples per pixel, exposure), and the path and bytes of every texture image (photons bounce off textured
 //!   surfaces; the scene blob names images by slot, so it does not depend on them).
 //!
-//! The camera is in neither: it travels in the frame. A changed input changes a key, and another build has
+//! The camera is in neither: it travels in the frame. What the camera decides of the scene blob, the error
+//! bound of each simplified mesh ([`photon_core::prepare::lod::plan`], quantised to quarter octaves so that a
+//! small move of the camera keeps it), is in the scene key: a mesh simplified for another view is never reused,
+//! and an unchanged bound finds the mesh that bound builds. A changed input changes a key, and another build has
 //! another build id, so a stale entry is never read; it just ages out. Each file holds the BLAKE3 hash of its
 //! payload before the payload, and a file that does not match is deleted and rebuilt. The folder is a
 //! [`DiskStore`]: files are written under a temporary name and renamed, and the folder is trimmed to its cap,
@@ -91,6 +94,14 @@ impl PreparedCache {
                 h.update(&bytes);
             }
         }
+        // The level of detail of each mesh: kept whole (0), or simplified with this bound (its bits).
+        for lod in photon_core::prepare::lod::plan(scene) {
+            let bound = match lod {
+                Some(photon_core::prepare::lod::MeshLod::Simplify { bound }) => bound.to_bits(),
+                _ => 0,
+            };
+            h.update(&bound.to_le_bytes());
+        }
         let scene_key = h.finalize().to_hex().to_string();
         let mut settings = scene.render.clone();
         settings.spp = 0;
@@ -147,8 +158,12 @@ mod tests {
     use super::*;
 
     fn scene(dir: &Path, photons: u32, spp: u32) -> Scene {
+        scene_from(dir, photons, spp, 5.0)
+    }
+
+    fn scene_from(dir: &Path, photons: u32, spp: u32, eye_z: f32) -> Scene {
         let text = format!(
-            "[camera]\neye = [0, 0, 5]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\
+            "[camera]\neye = [0, 0, {eye_z}]\nlook_at = [0, 0, 0]\nwidth = 8\nheight = 8\n\
              [render]\nspp = {spp}\n[render.photons]\nglobal = {photons}\n\
              [materials.white]\ntype = \"lambert\"\nalbedo = [0.5, 0.5, 0.5]\n\
              [[objects]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"white\"\n"
@@ -194,6 +209,22 @@ mod tests {
         // The scene blob names images by slot: it does not change; photons bounce off the new texels.
         assert_eq!(before.scene, after.scene);
         assert_ne!(before.photons, after.photons);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn the_scene_key_follows_the_level_of_detail() {
+        let dir = std::env::temp_dir().join(format!("photon-prepared-lod-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("m.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+        // The mesh's nearest point is 10 units away: a slightly moved camera keeps the quantised bound and the key.
+        let base = PreparedCache::keys(&scene_from(&dir, 1000, 4, 10.0)).unwrap();
+        let nudged = PreparedCache::keys(&scene_from(&dir, 1000, 4, 10.01)).unwrap();
+        assert_eq!(base.scene, nudged.scene);
+        // Twice as far, the bound doubles: another mesh, another key.
+        let far = PreparedCache::keys(&scene_from(&dir, 1000, 4, 20.0)).unwrap();
+        assert_ne!(base.scene, far.scene);
+        assert_ne!(base.photons, far.photons);
         let _ = std::fs::remove_dir_all(&dir);
     }
 

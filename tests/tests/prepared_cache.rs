@@ -61,3 +61,50 @@ fn unchanged_scenes_come_from_the_cache_and_changed_ones_do_not() {
     assert!(o.status.success());
     assert!(!summary(&o).contains("cached") && !summary(&o).contains("built"), "{}", summary(&o));
 }
+
+/// A torus of `scenes/meshes` (Lambert: level of detail applies) seen from `z` units along +z.
+fn lod_scene(dir: &Path, z: f32) -> std::path::PathBuf {
+    let text = format!(
+        "[camera]\neye = [0.0, 0.5, {z}]\nlook_at = [0.0, 0.0, 0.0]\n\
+         [materials.white]\ntype = \"lambert\"\nalbedo = 0.7\n\
+         [[objects]]\ntype = \"plane\"\npoint = [0.0, -1.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\nmaterial = \"white\"\n\
+         [[objects]]\ntype = \"mesh\"\nfile = \"{}\"\nmaterial = \"white\"\n\
+         [[lights]]\ntype = \"point\"\nposition = [2.0, 4.0, 3.0]\npower = [300.0, 300.0, 300.0]\n",
+        scenes_dir().join("meshes/torus.obj").display()
+    );
+    let path = dir.join(format!("torus-{z}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// Renders `scene` with the path tracer (no photons: only the scene blob goes through the cache); the summary.
+fn render_path(scene: &Path, cache: &Path, out: &Path) -> String {
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(scene).arg("-o").arg(out).arg("-q").arg("--cache-dir").arg(cache);
+    cmd.args(["--size", "32x24", "--spp", "1", "--integrator", "path"]);
+    let o = run_with_timeout(&mut cmd, Duration::from_secs(120));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    summary(&o)
+}
+
+#[test]
+fn a_mesh_simplified_for_another_view_is_not_reused() {
+    let dir = temp_dir("prepared-cache", "lod");
+    let cache = dir.join("cache");
+    let near = render_path(&lod_scene(&dir, 3.0), &cache, &dir.join("near.exr"));
+    assert!(near.ends_with("scene built"), "{near}");
+    // Ten times farther: the bound grows tenfold, and the torus is simplified anew.
+    let far = render_path(&lod_scene(&dir, 30.0), &cache, &dir.join("far.exr"));
+    assert!(far.ends_with("scene built"), "{far}");
+    // A camera moved by 0.1 %: the same quantised bound, the same mesh, from the cache.
+    let nudged = render_path(&lod_scene(&dir, 30.03), &cache, &dir.join("nudged.exr"));
+    assert!(nudged.ends_with("scene cached"), "{nudged}");
+    // The log says what level of detail did.
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(lod_scene(&dir, 30.0)).arg("-o").arg(dir.join("log.exr")).args(["-q", "--no-cache"]);
+    cmd.args(["--size", "32x24", "--spp", "1"]).env("RUST_LOG", "photon_core=info");
+    let o = run_with_timeout(&mut cmd, Duration::from_secs(120));
+    assert!(o.status.success());
+    let log = String::from_utf8_lossy(&o.stderr);
+    assert!(log.contains("torus.obj: ") && log.contains(" triangles → ") && log.contains("(lod 1, error "), "{log}");
+}

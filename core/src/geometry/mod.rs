@@ -5,6 +5,7 @@
 //! the scene's `Object` list (`scene::types`) with its validation (`scene::validate`).
 
 pub mod bvh;
+pub mod lod;
 pub mod mesh;
 pub mod shapes;
 

@@ -5,6 +5,7 @@
 
 pub mod blobs;
 pub mod budget;
+pub mod lod;
 pub mod photons;
 pub mod textures;
 
@@ -138,6 +139,7 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
     let mut meshes = Vec::new();
     // Emission of each light-carrying primitive, by light index, before the BVH reorders primitives.
     let mut emitters: Vec<Emission> = Vec::new();
+    let lods = lod::plan(scene);
     for (i, o) in scene.objects.iter().enumerate() {
         let object = i as u32;
         let material = material_index(o.material(), format!("objects[{i}].material"))?;
@@ -181,7 +183,7 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                 }
                 push(Shape::Triangle(tri), emission)
             }
-            Object::Mesh { file, transform, emission, smooth, crease_angle, .. } => {
+            Object::Mesh { file, transform, emission, smooth, crease_angle, lod, .. } => {
                 let path = scene.base_dir.join(file);
                 let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
                 let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
@@ -205,6 +207,7 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                         ),
                     });
                 }
+                let mesh = level_of_detail(mesh, lods.get(i).and_then(Option::as_ref), file, *lod);
                 let mesh_index = meshes.len() as u32;
                 for (face, t) in mesh.triangles.iter().enumerate() {
                     let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };
@@ -218,6 +221,33 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
         }
     }
     Ok((Geometry::new(prims, planes, meshes), emitters))
+}
+
+/// The mesh as the level-of-detail plan of its object says (simplified, or whole), with a line in the log.
+fn level_of_detail(
+    mesh: crate::geometry::mesh::MeshData,
+    plan: Option<&lod::MeshLod>,
+    file: &std::path::Path,
+    lod: f32,
+) -> crate::geometry::mesh::MeshData {
+    let before = mesh.triangles.len();
+    match plan {
+        Some(lod::MeshLod::Simplify { bound }) => {
+            let s = crate::geometry::lod::simplify(&mesh, *bound);
+            tracing::info!(
+                "mesh {}: {before} triangles → {} (lod {lod}, error {:.3e} scene units; bound {bound:.3e})",
+                file.display(),
+                s.mesh.triangles.len(),
+                s.error
+            );
+            s.mesh
+        }
+        Some(lod::MeshLod::Full(why)) if *why != lod::Full::Off => {
+            tracing::info!("mesh {}: {before} triangles, all kept: no level of detail, as {why}", file.display());
+            mesh
+        }
+        _ => mesh,
+    }
 }
 
 /// The lights: area lights in scene order (whatever order the BVH put their primitives in), then point

@@ -455,11 +455,21 @@ pub enum Object {
         /// [0, 180]; default 30. Unused when the file has normals.
         #[serde(default = "default_crease_angle")]
         crease_angle: f32,
+        /// Level of detail, in pixels (finite, ≥ 0); default 0.25: the mesh is simplified so that its surface moves
+        /// by at most about `lod` times the width of one pixel's footprint at the mesh's nearest distance to the
+        /// camera. `0` keeps every triangle. Off for emitting meshes and in scenes with mirror or glass
+        /// materials ([`crate::prepare::lod`]).
+        #[serde(default = "default_lod")]
+        lod: f32,
     },
 }
 
 fn default_smooth() -> bool {
     true
+}
+
+fn default_lod() -> f32 {
+    crate::geometry::lod::DEFAULT_LOD
 }
 
 fn default_crease_angle() -> f32 {

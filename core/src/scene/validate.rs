@@ -102,7 +102,8 @@ impl Scene {
                 }
                 emission
             }
-            Object::Mesh { transform, emission, crease_angle, .. } => {
+            Object::Mesh { transform, emission, crease_angle, lod, .. } => {
+                positive_or_zero(&f("lod"), *lod)?;
                 if !(0.0..=180.0).contains(crease_angle) {
                     return Err(FieldError::new(
                         f("crease_angle"),

@@ -17,7 +17,7 @@ trap 'rm -rf "$OUT" "$FLAT"' EXIT
 sed -e 's|^albedo = { checker = .*|albedo = [0.46, 0.45, 0.43]|' \
     -e 's|^albedo = { image = "textures/wood.png" }|albedo = [0.33, 0.18, 0.08]|' \
     -e '/^bump = /d' -e '/^normal_map = /d' scenes/textured.toml > "$FLAT"
-secs() { sed -n 's/.* in \([0-9.]*\) s (.*/\1/p' | head -1; }
+secs() { sed -n 's/.*, \([0-9.]*\) s render .*/\1/p' | head -1; }
 median() { sort -g | sed -n 2p; }
 run() { "$BIN/photon-coordinator" render "$1" -o "$OUT/x.exr" --size 256x256 --spp 32 --integrator path --no-cache | secs; }
 : > "$OUT/t"; : > "$OUT/f"
