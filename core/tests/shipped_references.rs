@@ -56,3 +56,12 @@ fn progressive_references_of_point_light_caustics() {
     check("cornell-point", Integrator::Progressive, [8, 32]);
     check("caustic-point", Integrator::Progressive, [8, 32]);
 }
+
+/// Textures, a bump map and a normal map: the path tracer converges to the reference, and progressive photon
+/// mapping (photons bouncing off the textured, bumped and normal-mapped surfaces, with the adjoint BSDF) converges
+/// to the path tracer's image.
+#[test]
+fn textured_reference() {
+    check("textured", Integrator::Path, [64, 256]);
+    check("textured", Integrator::Progressive, [8, 32]);
+}

@@ -106,5 +106,5 @@ fn a_mesh_simplified_for_another_view_is_not_reused() {
     let o = run_with_timeout(&mut cmd, Duration::from_secs(120));
     assert!(o.status.success());
     let log = String::from_utf8_lossy(&o.stderr);
-    assert!(log.contains("torus.obj: ") && log.contains(" triangles → ") && log.contains("(lod 1, error "), "{log}");
+    assert!(log.contains("torus.obj: ") && log.contains(" triangles → ") && log.contains("(lod 0.25, error "), "{log}");
 }

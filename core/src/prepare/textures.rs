@@ -32,8 +32,8 @@ pub fn files(scene: &Scene) -> Vec<(PathBuf, String)> {
 ///
 /// # Errors
 /// [`SceneError::Texture`] naming the scene, the material's field and the file: the file cannot be read or
-/// decoded, is empty, has a side of 0 or over [`MAX_TEXTURE_SIDE`], or decodes to more than
-/// `limits.texture_mib`; float texels that are negative or not finite.
+/// decoded, is empty, has a side of 0 or over [`crate::material::texture::MAX_TEXTURE_SIDE`], or decodes to
+/// more than `limits.texture_mib`; float texels that are negative or not finite.
 pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
     let files = files(scene);
     let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
