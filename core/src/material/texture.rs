@@ -225,14 +225,22 @@ impl TexelImage {
     pub fn texel(&self, i: u32, j: u32, space: ColorSpace) -> Rgb {
         let c = usize::from(self.channels);
         let at = (j as usize * self.width as usize + i as usize) * c;
-        let read = |k: usize| -> f32 {
-            match &self.texels {
-                Texels::U8(v) => v.get(at + k).map_or(0.0, |&x| decode_u8(x, space)),
-                Texels::U16(v) => v.get(at + k).map_or(0.0, |&x| decode_unit(f32::from(x) / 65535.0, space)),
-                Texels::F32(v) => v.get(at + k).copied().unwrap_or(0.0),
+        // One match per texel, not per channel; indices past the end (impossible after `check`) read 0.
+        let [r, g, b] = match &self.texels {
+            Texels::U8(v) => {
+                let raw = read3(v, at, c);
+                match space {
+                    ColorSpace::Linear => raw.map(|x| f32::from(x) / 255.0),
+                    ColorSpace::Srgb => {
+                        let table = srgb_table();
+                        raw.map(|x| table[usize::from(x)])
+                    }
+                }
             }
+            Texels::U16(v) => read3(v, at, c).map(|x| decode_unit(f32::from(x) / 65535.0, space)),
+            Texels::F32(v) => read3(v, at, c),
         };
-        if c == 1 { Rgb::splat(read(0)) } else { Rgb::new(read(0), read(1), read(2)) }
+        Rgb::new(r, g, b)
     }
 
     /// Bytes of texel storage.
@@ -251,6 +259,19 @@ impl TexelImage {
             Texels::U8(v) => (v.iter().map(|&x| decode_u8(x, space)).fold(0.0, f32::max), 0),
             Texels::U16(v) => (v.iter().map(|&x| decode_unit(f32::from(x) / 65535.0, space)).fold(0.0, f32::max), 0),
             Texels::F32(v) => (v.iter().copied().fold(0.0, f32::max), v.iter().filter(|&&x| x > 1.0).count()),
+        }
+    }
+}
+
+/// The values of one texel at `at`: three channels, or one repeated; 0 past the end.
+#[inline]
+fn read3<T: Copy + Default>(v: &[T], at: usize, channels: usize) -> [T; 3] {
+    if channels == 1 {
+        [v.get(at).copied().unwrap_or_default(); 3]
+    } else {
+        match v.get(at..at + 3) {
+            Some(&[r, g, b]) => [r, g, b],
+            _ => [T::default(); 3],
         }
     }
 }
