@@ -102,21 +102,15 @@ impl Job {
         settings: &photon_core::scene::RenderSettings,
     ) -> Self {
         let mut blobs = BTreeMap::new();
-        let scene_blob = photon_proto::blob_id(&scene);
-        blobs.insert(scene_blob.clone(), Arc::new(scene));
-        let photons_blob = photons.map(|p| {
-            let id = photon_proto::blob_id(&p);
-            blobs.insert(id.clone(), Arc::new(p));
+        // Files a blob under its content id and returns the id.
+        let mut add = |bytes: Vec<u8>| {
+            let id = photon_proto::blob_id(&bytes);
+            blobs.insert(id.clone(), Arc::new(bytes));
             id
-        });
-        let texture_blobs = textures
-            .into_iter()
-            .map(|t| {
-                let id = photon_proto::blob_id(&t);
-                blobs.insert(id.clone(), Arc::new(t));
-                id
-            })
-            .collect();
+        };
+        let scene_blob = add(scene);
+        let photons_blob = photons.map(&mut add);
+        let texture_blobs = textures.into_iter().map(&mut add).collect();
         let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
         let passes = progressive.then_some(settings.photons.passes.max(1));
         let trace_photons = settings.integrator.needs_photon_maps() && photons_blob.is_none();
@@ -224,11 +218,8 @@ pub fn prepare_job(
             (bytes, Some(prep), images)
         }
     };
-    let textures = images
-        .iter()
-        .map(photon_core::codec::encode)
-        .collect::<Result<Vec<_>, _>>()
-        .map_err(|e| JobError::Encode("textures", e))?;
+    let textures =
+        photon_core::prepare::blobs::encode_textures(&images).map_err(|e| JobError::Encode("textures", e))?;
     if !needs_photons {
         let hits = prepared_cache::Hits { scene: scene_hit, photons: false };
         return Ok((job(scene_blob, None, textures), Some(hits), None));

@@ -180,10 +180,8 @@ impl Geometry {
                 let (n, ns, uv, dpdu, dpdv) = match pr.shape {
                     Shape::Triangle(tri) if tri.mesh != shapes::NO_MESH => {
                         let (n, ns, uv_mesh) = self.mesh_shading(&tri, uv, n);
-                        match uv_mesh {
-                            Some((uv, dpdu, dpdv)) => (n, ns, uv, dpdu, dpdv),
-                            None => (n, ns, uv, dpdu, dpdv),
-                        }
+                        let (uv, dpdu, dpdv) = uv_mesh.unwrap_or((uv, dpdu, dpdv));
+                        (n, ns, uv, dpdu, dpdv)
                     }
                     _ => (n, n, uv, dpdu, dpdv),
                 };

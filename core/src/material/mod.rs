@@ -343,9 +343,17 @@ impl Material {
         }
     }
 
-    /// Every image the material reads, with its field (`albedo`, `bump`, `normal_map`) and the colour space
-    /// its integer texels are decoded with, in a fixed order: colours in declaration order, then the bump or
-    /// normal map. Mutable, so that preparing the scene can set each image's slot.
+    /// Every image the material reads, with its field (`albedo`, `bump`, `normal_map`), in a fixed order:
+    /// colours in declaration order, then the bump or normal map.
+    pub fn images(&self) -> Vec<(&'static str, &ImageRef)> {
+        let mut out: Vec<(&'static str, &ImageRef)> =
+            self.colors().into_iter().filter_map(|(n, t)| t.image().map(|r| (n, r))).collect();
+        out.extend(self.bump().map(|b| ("bump", &b.image)));
+        out.extend(self.normal_map().map(|n| ("normal_map", &n.image)));
+        out
+    }
+
+    /// [`Material::images`], mutable, so that preparing the scene can set each image's slot.
     pub fn images_mut(&mut self) -> Vec<(&'static str, &mut ImageRef)> {
         let (colors, bump, normal_map): (Vec<(&'static str, &mut Texture)>, _, _) = match self {
             Material::Lambert { albedo, bump, normal_map } => (vec![("albedo", albedo)], bump, normal_map),

@@ -252,14 +252,12 @@ impl TexelImage {
         }
     }
 
-    /// The largest linear value of any texel under `space`, and how many values exceed 1.
-    pub fn max_and_over_one(&self, space: ColorSpace) -> (f32, usize) {
-        match &self.texels {
-            // Integer texels decode into [0, 1].
-            Texels::U8(v) => (v.iter().map(|&x| decode_u8(x, space)).fold(0.0, f32::max), 0),
-            Texels::U16(v) => (v.iter().map(|&x| decode_unit(f32::from(x) / 65535.0, space)).fold(0.0, f32::max), 0),
-            Texels::F32(v) => (v.iter().copied().fold(0.0, f32::max), v.iter().filter(|&&x| x > 1.0).count()),
-        }
+    /// How many values exceed 1, and the largest, when any does. Only float texels can: integer ones decode
+    /// into `[0, 1]` in either colour space, so they are not scanned.
+    pub fn above_one(&self) -> Option<(usize, f32)> {
+        let Texels::F32(v) = &self.texels else { return None };
+        let over = v.iter().filter(|&&x| x > 1.0).count();
+        (over > 0).then(|| (over, v.iter().copied().fold(0.0, f32::max)))
     }
 }
 
@@ -276,16 +274,8 @@ fn read3<T: Copy + Default>(v: &[T], at: usize, channels: usize) -> [T; 3] {
     }
 }
 
-/// The sRGB decoding of an 8-bit value, from a table built once with the portable `powf` (the same bits on
-/// every architecture).
-#[inline]
-fn decode_u8(x: u8, space: ColorSpace) -> f32 {
-    match space {
-        ColorSpace::Linear => f32::from(x) / 255.0,
-        ColorSpace::Srgb => srgb_table()[usize::from(x)],
-    }
-}
-
+/// The sRGB decodings of the 8-bit values, built once with the portable `powf` (the same bits on every
+/// architecture).
 fn srgb_table() -> &'static [f32; 256] {
     static TABLE: std::sync::OnceLock<[f32; 256]> = std::sync::OnceLock::new();
     TABLE.get_or_init(|| std::array::from_fn(|i| srgb_decode(i as f32 / 255.0)))

@@ -91,9 +91,9 @@ impl Prepared {
         codec::encode(&FrameRef { camera, settings })
     }
 
-    /// The texture blobs, one per image slot: each image's texels, decoded once from its file.
+    /// The texture blobs, one per image slot ([`encode_textures`]).
     pub fn encode_textures(&self) -> Result<Vec<Vec<u8>>, CodecError> {
-        self.textures.iter().map(codec::encode).collect()
+        encode_textures(&self.textures)
     }
 
     /// A prepared scene from its scene blob, its decoded texture images, a camera and settings, without photon
@@ -138,6 +138,11 @@ impl Prepared {
     }
 }
 
+/// The texture blobs of `images`, one per slot: each image's texels, decoded once from its file.
+pub fn encode_textures(images: &[TexelImage]) -> Result<Vec<Vec<u8>>, CodecError> {
+    images.iter().map(codec::encode).collect()
+}
+
 /// Decodes and checks texture blobs, each of at most `limit` bytes.
 pub fn decode_textures(blobs: &[&[u8]], limit: usize) -> Result<Vec<TexelImage>, FrameError> {
     blobs
@@ -155,7 +160,7 @@ pub fn decode_textures(blobs: &[&[u8]], limit: usize) -> Result<Vec<TexelImage>,
 /// Refuses a material whose image slot is not below `n`.
 fn check_slots(materials: &[Material], n: usize) -> Result<(), FrameError> {
     for (i, m) in materials.iter().enumerate() {
-        for (field, r) in m.clone().images_mut() {
+        for (field, r) in m.images() {
             if r.slot as usize >= n {
                 return Err(FrameError::Textures(format!("material {i}'s {field} reads texture {} of {n}", r.slot)));
             }

@@ -8,7 +8,7 @@
 //! text, so a scene blob from the cache and freshly decoded images always agree.
 
 use crate::material::Material;
-use crate::material::texture::{ColorSpace, TexelImage, decode_file};
+use crate::material::texture::{TexelImage, decode_file};
 use crate::scene::{Scene, SceneError};
 use std::path::{Path, PathBuf};
 
@@ -17,8 +17,7 @@ use std::path::{Path, PathBuf};
 pub fn files(scene: &Scene) -> Vec<(PathBuf, String)> {
     let mut out: Vec<(PathBuf, String)> = Vec::new();
     for (name, m) in &scene.materials {
-        let mut m = m.clone();
-        for (field, r) in m.images_mut() {
+        for (field, r) in m.images() {
             let path = scene.base_dir.join(&r.file);
             if !out.iter().any(|(p, _)| *p == path) {
                 out.push((path, format!("materials.{name}.{field}")));
@@ -54,18 +53,15 @@ pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<Texe
             // `files` listed every path, so the position exists.
             r.slot = files.iter().position(|(p, _)| *p == path).map_or(crate::geometry::NONE, |i| i as u32);
             let is_colour = field != "bump" && field != "normal_map";
-            if let Some(img) = images.get(r.slot as usize)
+            if let Some((over, max)) = images.get(r.slot as usize).and_then(TexelImage::above_one)
                 && is_colour
             {
-                let (max, over) = img.max_and_over_one(r.colorspace.unwrap_or(ColorSpace::Srgb));
-                if over > 0 {
-                    tracing::warn!(
-                        "{}: materials.{name}.{field}: {} has {over} texel values above 1 (largest {max}); a \
-                         reflectance reads them as 1",
-                        scene_path.display(),
-                        path.display()
-                    );
-                }
+                tracing::warn!(
+                    "{}: materials.{name}.{field}: {} has {over} texel values above 1 (largest {max}); a \
+                     reflectance reads them as 1",
+                    scene_path.display(),
+                    path.display()
+                );
             }
         }
     }
