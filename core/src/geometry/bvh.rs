@@ -69,7 +69,7 @@ const PARALLEL_BINNING: usize = 1 << 16;
 pub const CHUNK: usize = 1 << 14;
 
 /// Subtrees with more primitives than this are built as rayon tasks.
-const PARALLEL_SUBTREE: usize = 1 << 12;
+const PARALLEL_SUBTREE: usize = 1 << 14;
 
 /// pbrt's γ(3) = 3ε/(1 − 3ε) with ε = 2⁻²⁴: scaling the far slab distance by 1 + 2γ(3) makes the box test
 /// conservative under rounding (pbrt-v4 §6.8.2).
@@ -202,7 +202,9 @@ impl Bvh {
         }
         assert!(bounds.len() < u32::MAX as usize, "a BVH holds fewer than 2^32 primitives");
         let (binary, order) = build_binary(bounds);
-        (Bvh { nodes: collapse(&binary), bounds: binary[0].b }, order)
+        let mut nodes = collapse(&binary);
+        nodes.shrink_to_fit();
+        (Bvh { nodes, bounds: binary[0].b }, order)
     }
 
     /// Closest hit: `hit(prim, current_tmax)` returns a `t < current_tmax` if primitive `prim` (in the new order)
@@ -254,15 +256,21 @@ impl Bvh {
                 if e.count == 0 {
                     let node = &self.nodes[e.child as usize];
                     let (mask, t0) = ray.hits(node, *tmax);
-                    let order = node.order[ray.octant];
-                    // Push in reverse visiting order, so the first child is popped first.
-                    for k in (0..u32::from(node.n)).rev() {
-                        let slot = usize::from((order >> (2 * k)) & 3);
-                        if mask & (1 << slot) != 0 {
-                            stack[sp] =
-                                Entry { child: node.child[slot], count: u32::from(node.count[slot]), t0: t0[slot] };
-                            sp += 1;
+                    if mask != 0 {
+                        let order = node.order[ray.octant];
+                        // Push the hit children in reverse visiting order, then take the first off again: the
+                        // loop goes on with it at once (its t0 passed with this tmax).
+                        for k in (0..u32::from(node.n)).rev() {
+                            let slot = usize::from((order >> (2 * k)) & 3);
+                            if mask & (1 << slot) != 0 {
+                                stack[sp] =
+                                    Entry { child: node.child[slot], count: u32::from(node.count[slot]), t0: t0[slot] };
+                                sp += 1;
+                            }
                         }
+                        sp -= 1;
+                        e = stack[sp];
+                        continue;
                     }
                 } else if leaf(e.child, e.count, tmax) {
                     return true;
@@ -339,7 +347,7 @@ fn build_binary(bounds: &[Aabb]) -> (Vec<Node>, Vec<u32>) {
             Ref { bounds: b, c, index: i as u32 }
         })
         .collect();
-    let mut binary = Vec::with_capacity(bounds.len().div_ceil(2).max(1));
+    let mut binary = Vec::with_capacity(bounds.len() + bounds.len() / 4);
     build_node(&mut refs, 0, 0, &mut binary);
     (binary, refs.iter().map(|r| r.index).collect())
 }
@@ -503,11 +511,13 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
         }
     };
     let (left, right) = refs.split_at_mut(mid);
-    if n > PARALLEL_SUBTREE {
+    // The tree does not depend on which branch runs; one thread gains nothing from the copies of the first.
+    if n > PARALLEL_SUBTREE && rayon::current_num_threads() > 1 {
         // Both halves as tasks into their own arrays, then appended: the node indices they hold are relative to
         // their own start until shifted.
         let build = |refs: &mut [Ref], first: u32| {
-            let mut v = Vec::with_capacity(refs.len().div_ceil(2));
+            // About 1.1 nodes per primitive with leaves of up to MAX_LEAF.
+            let mut v = Vec::with_capacity(refs.len() + refs.len() / 4);
             build_node(refs, first, depth + 1, &mut v);
             v
         };
