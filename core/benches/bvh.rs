@@ -1,8 +1,11 @@
-//! BVH build time, size and single-threaded closest-hit throughput on procedural meshes of 100k and 1M
-//! triangles (a displaced UV sphere: smooth bumps over the whole surface, degenerate slivers at the poles).
+//! BVH build time (on 1 and 2 threads), size and single-threaded closest-hit and any-hit throughput on procedural
+//! meshes of 100k and 1M triangles (a displaced UV sphere: smooth bumps over the whole surface, degenerate
+//! slivers at the poles).
 //!
 //! Run with `cargo bench -p photon-core --bench bvh`. Coherent rays come from a pinhole camera looking at the
 //! mesh; incoherent rays start at random points in the mesh's bounds and go in uniformly random directions.
+//! Any-hit rays are the same rays with an infinite `tmax`. Bytes per triangle count the BVH alone and the BVH
+//! plus the primitive array traversal reads.
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Vec3, Vec3A};
@@ -84,38 +87,61 @@ fn trace(g: &Geometry, rays: &[Ray]) -> usize {
         .count()
 }
 
+/// Traces every ray to any hit through the BVH; returns the number of occluded rays.
+fn occluded(g: &Geometry, rays: &[Ray]) -> usize {
+    rays.iter()
+        .filter(|ray| {
+            g.bvh.any_hit(ray.o, ray.d, f32::INFINITY, |i, tmax| {
+                g.prims[i as usize].shape.intersect(ray, tmax).is_some()
+            })
+        })
+        .count()
+}
+
 fn bench(c: &mut Criterion) {
     for (label, rows, cols) in [("100k", 224, 224), ("1M", 708, 708)] {
         let tris = displaced_sphere(rows, cols);
         let bounds: Vec<Aabb> = tris.iter().map(Triangle::bounds).collect();
         let g = geometry(&tris);
         let bytes = g.bvh.memory_bytes();
+        let prim_bytes = g.prims.len() * std::mem::size_of::<Primitive>();
         println!(
-            "bvh {label}: {} triangles, {} nodes, depth {}, {} bytes = {:.1} bytes/triangle",
+            "bvh {label}: {} triangles, {} nodes, depth {}, {} bytes = {:.1} bytes/triangle ({:.1} with primitives)",
             tris.len(),
             g.bvh.node_count(),
             g.bvh.depth(),
             bytes,
-            bytes as f64 / tris.len() as f64
+            bytes as f64 / tris.len() as f64,
+            (bytes + prim_bytes) as f64 / tris.len() as f64
         );
         let mut group = c.benchmark_group(format!("bvh_{label}"));
         group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(3));
         group.throughput(Throughput::Elements(tris.len() as u64));
-        group.bench_function("build", |b| b.iter(|| Bvh::build(black_box(&bounds))));
+        for threads in [1, 2] {
+            let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(threads).build() else { continue };
+            group.bench_function(format!("build_{threads}t"), |b| {
+                b.iter(|| pool.install(|| Bvh::build(black_box(&bounds))))
+            });
+        }
 
         let coherent = camera_rays(256, 256);
         let incoherent = random_rays(65_536, g.bounds());
         println!(
-            "bvh {label}: coherent hits {}/{}, incoherent hits {}/{}",
+            "bvh {label}: coherent hits {}/{} (occluded {}), incoherent hits {}/{} (occluded {})",
             trace(&g, &coherent),
             coherent.len(),
+            occluded(&g, &coherent),
             trace(&g, &incoherent),
-            incoherent.len()
+            incoherent.len(),
+            occluded(&g, &incoherent)
         );
         group.throughput(Throughput::Elements(coherent.len() as u64));
         group.bench_function("closest_coherent", |b| b.iter(|| trace(&g, black_box(&coherent))));
         group.throughput(Throughput::Elements(incoherent.len() as u64));
         group.bench_function("closest_incoherent", |b| b.iter(|| trace(&g, black_box(&incoherent))));
+        group.bench_function("any_incoherent", |b| b.iter(|| occluded(&g, black_box(&incoherent))));
+        group.throughput(Throughput::Elements(coherent.len() as u64));
+        group.bench_function("any_coherent", |b| b.iter(|| occluded(&g, black_box(&coherent))));
         group.finish();
     }
 }

@@ -211,3 +211,21 @@ fn build_is_deterministic() {
     let bytes = |bvh: &Bvh| bincode::serde::encode_to_vec(bvh, bincode::config::standard()).unwrap();
     assert_eq!(bytes(&a), bytes(&b));
 }
+
+#[test]
+fn build_is_the_same_on_1_and_4_threads() {
+    // Enough triangles that the top nodes bin in parallel chunks and the subtrees are rayon tasks.
+    let tris = soup(6, 300_000);
+    let bounds: Vec<Aabb> = tris.iter().map(Triangle::bounds).collect();
+    assert!(bounds.len() > 4 * photon_core::geometry::bvh::CHUNK);
+    let build = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(|| Bvh::build(&bounds))
+    };
+    let (one, order_one) = build(1);
+    let (four, order_four) = build(4);
+    assert_eq!(order_one, order_four);
+    assert_eq!(one.structure_hash(), four.structure_hash());
+    assert_eq!(one, four);
+    assert!(one.node_count() > 10_000);
+}

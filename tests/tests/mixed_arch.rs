@@ -86,21 +86,101 @@ fn strips_and_speculative(o: &Output, addr: &str) -> (u32, u32) {
     (row.units as u32, row.speculative)
 }
 
+/// A bumpy icosphere of 20·4⁵ = 20480 triangles of about unit radius, as OBJ text: deep enough BVHs (two of
+/// them in a scene) for the wide traversal's ordering, ties on shared edges and SIMD box tests to matter.
+fn bumpy_icosphere_obj() -> String {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<[f64; 3]> = [
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ]
+    .to_vec();
+    let mut faces: Vec<[usize; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..5 {
+        let mut mid = std::collections::HashMap::new();
+        let mut split = |a: usize, b: usize, v: &mut Vec<[f64; 3]>| {
+            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+                v.push([0, 1, 2].map(|k| 0.5 * (v[a][k] + v[b][k])));
+                v.len() - 1
+            })
+        };
+        faces = faces
+            .iter()
+            .flat_map(|&[a, b, c]| {
+                let (ab, bc, ca) = (split(a, b, &mut v), split(b, c, &mut v), split(c, a, &mut v));
+                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
+            })
+            .collect();
+    }
+    let mut obj = String::new();
+    for p in &v {
+        let len = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+        let bump = 1.0 + 0.06 * (9.0 * p[0] / len).sin() * (7.0 * p[1] / len).sin() * (11.0 * p[2] / len).sin();
+        obj += &format!("v {:.6} {:.6} {:.6}\n", bump * p[0] / len, bump * p[1] / len, bump * p[2] / len);
+    }
+    for f in &faces {
+        obj += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);
+    }
+    obj
+}
+
 /// Every code path a worker runs: the camera, spheres (their UVs), rectangles, meshes with interpolated normals,
-/// Lambert, mirror, glass and Phong lobes, textures, bump and normal maps, photon gathering, and photon tracing
-/// itself (progressive passes are traced on the workers). Each job is rendered by the x86-64 worker alone and the aarch64 worker alone.
+/// Lambert, mirror, glass and Phong lobes, textures, bump and normal maps, photon gathering, photon tracing itself
+/// (progressive passes are traced on the workers), and a scene of two 20k-triangle meshes. Each job is rendered
+/// by the x86-64 worker alone and the aarch64 worker alone.
 #[test]
 fn aarch64_and_x86_64_workers_render_identical_strips() {
     let Some(arm) = start_aarch64(&["--threads", "2"]) else { return };
     let x86 = WorkerProcess::start(&["--threads", "2"]);
     let dir = temp_dir("mixed-arch", "agree");
-    let jobs: [(&str, &[&str]); 5] = [
+    // mesh.toml with its torus (glossy) and icosphere (glass) both replaced by the bumpy icosphere; the glass
+    // keeps level of detail off, so both meshes keep all their triangles.
+    std::fs::write(dir.join("bumpy.obj"), bumpy_icosphere_obj()).unwrap();
+    let scene = std::fs::read_to_string(scenes_dir().join("mesh.toml")).unwrap();
+    let scene = scene.replace("meshes/torus.obj", "bumpy.obj").replace("meshes/icosphere.obj", "bumpy.obj");
+    let big = dir.join("big-mesh.toml");
+    std::fs::write(&big, scene).unwrap();
+    let big = big.to_string_lossy().into_owned();
+    let jobs: [(&str, &[&str]); 6] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
         // Checker, image (sRGB table), bump and normal maps: lookups, finite differences and tangent frames.
         ("textured.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("textured.toml", &["--size", "32x32", "--integrator", "progressive", "--passes", "2"]),
+        // `join` keeps an absolute path as it is.
+        (&big, &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
     ];
     for (scene, job) in jobs {
         let (a, b) = (dir.join("x86.exr"), dir.join("arm.exr"));

@@ -1,21 +1,43 @@
-//! A bounding volume hierarchy over primitive bounds: binned-SAH build, flat depth-first nodes, closest-hit and
-//! any-hit traversal.
+//! A bounding volume hierarchy over primitive bounds: a binned-SAH binary build (parallel and deterministic),
+//! collapsed into a 4-wide tree traversed with SIMD box tests; closest-hit and any-hit queries.
 //!
 //! The BVH knows only boxes. [`Bvh::build`] returns a permutation of the primitives; the caller stores them in
 //! that order, so every leaf is a contiguous range of the caller's array and traversal needs no index table.
 //! Primitive tests are callbacks, so one BVH serves every shape without trait objects.
 //!
 //! Build: binned surface area heuristic (Wald, "On fast Construction of SAH-based Bounding Volume Hierarchies",
-//! 2007; pbrt-v4 §7.3.2) with [`BINS`] bins over the centroid bounds on all three axes. The build is sequential
-//! and uses only deterministic operations, so the same bounds always give the same nodes.
+//! 2007; pbrt-v4 §7.3.2) with [`BINS`] bins over the centroid bounds on all three axes. Large nodes bin their
+//! primitives in fixed chunks of [`CHUNK`] on rayon and merge the chunks in order, and large subtrees are rayon
+//! tasks; every split is a function of the node's primitives alone, so any number of threads builds the same
+//! tree.
 //!
-//! Layout: 32-byte nodes in depth-first order; an interior node's first child follows it, the second child's
-//! index is stored (pbrt's `LinearBVHNode`). The tree depth is capped at [`MAX_DEPTH`], so traversal uses a
-//! fixed stack and never allocates.
+//! Layout: the binary tree is collapsed into nodes of up to [`WIDTH`] children (Wald, Benthin and Boulos,
+//! "Getting rid of packets", 2008; Embree's BVH4): a node repeatedly opens its child of largest surface area
+//! until it has four. A node stores its children's boxes as structure of arrays, so one SIMD test per axis
+//! tests all four; leaves live in their parent's slots (a primitive range), so there are no leaf nodes.
+//!
+//! Traversal gives exactly the binary tree's results, bit for bit and on every architecture:
+//! - The box test is the binary tree's slab test, lane by lane: the same products and differences (never a
+//!   fused multiply-add), and the running near and far distances are updated by comparisons, `t0 = near if
+//!   near > t0`, which are false for NaN on every target; no `min`/`max` instruction, whose NaN rules differ
+//!   between x86 (`minps` returns its second operand) and NEON (`fmin` returns NaN).
+//! - Children are visited in the order the binary tree would visit the leaves below them: every node keeps,
+//!   for each of the 8 octants of ray direction signs, the order a depth-first walk of its collapsed binary
+//!   nodes gives (near child first along each split axis).
+//! - A child's near distance `t0` goes on the stack with it and is compared with the current `tmax` when it is
+//!   popped: `t0 <= min(tmax, far)` is the binary test of that box with the `tmax` the binary walk would use.
+//!   A box inside another gives a `t0` no smaller and a far distance no larger (rounding is monotonic), so a
+//!   subtree the wide walk skips holds no leaf the binary walk visits. Both walks therefore call the primitive
+//!   test on the same primitives in the same order with the same `tmax`, and ties between equal distances go to
+//!   the primitive tested first, as before.
+//!
+//! The binary tree's depth is capped at [`MAX_DEPTH`], so traversal uses a fixed stack and never allocates.
 
 use crate::math::Aabb;
 use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use wide::f32x4;
 
 /// Number of SAH bins per axis.
 pub const BINS: usize = 16;
@@ -23,23 +45,38 @@ pub const BINS: usize = 16;
 /// Most primitives in a leaf; the SAH may stop earlier.
 pub const MAX_LEAF: usize = 8;
 
+/// Children per node of the traversed tree.
+pub const WIDTH: usize = 4;
+
 /// Below this depth splits are chosen by the SAH; deeper nodes (only reached by pathological inputs, such as
 /// centroids spaced geometrically) are split at the centroid median, which halves the count at each level.
 const SAH_DEPTH: u32 = 32;
 
-/// Bound on the depth of any leaf, and the size of the traversal stack: 32 SAH levels (`SAH_DEPTH`), then at most
-/// 29 median levels take fewer than 2³² primitives down to [`MAX_LEAF`] = 2³.
+/// Bound on the depth of any leaf, and of the traversal stack: [`SAH_DEPTH`] SAH levels, then at most 29 median
+/// levels take fewer than 2³² primitives down to [`MAX_LEAF`] = 2³.
 pub const MAX_DEPTH: usize = 64;
+
+/// Traversal stack entries: each node on the path leaves at most `WIDTH − 1` siblings behind.
+const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
 
 /// Cost of one node visit relative to one primitive test, for the SAH.
 const TRAVERSAL_COST: f32 = 1.0;
+
+/// Nodes with more primitives than this bin them in parallel, in chunks of [`CHUNK`].
+const PARALLEL_BINNING: usize = 1 << 16;
+
+/// Primitives per binning chunk; fixed, so the merge order does not depend on the thread count.
+pub const CHUNK: usize = 1 << 14;
+
+/// Subtrees with more primitives than this are built as rayon tasks.
+const PARALLEL_SUBTREE: usize = 1 << 14;
 
 /// pbrt's γ(3) = 3ε/(1 − 3ε) with ε = 2⁻²⁴: scaling the far slab distance by 1 + 2γ(3) makes the box test
 /// conservative under rounding (pbrt-v4 §6.8.2).
 const FAR_SCALE: f32 = 1.0 + 2.0 * (3.0 * f32::EPSILON * 0.5) / (1.0 - 3.0 * f32::EPSILON * 0.5);
 
-/// One node: its box and either a leaf range or the second child's index.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+/// A node of the binary build tree: its box and either a leaf range or the second child's index.
+#[derive(Clone, Copy, Debug, PartialEq)]
 struct Node {
     /// `[min, max]` of the box.
     b: [[f32; 3]; 2],
@@ -51,18 +88,41 @@ struct Node {
     axis: u8,
 }
 
-const _: () = assert!(std::mem::size_of::<Node>() == 32);
-
 impl Node {
     fn new(bounds: Aabb) -> Self {
         Self { b: [bounds.min.to_array(), bounds.max.to_array()], offset: 0, count: 0, axis: 0 }
     }
 }
 
+/// A node of the traversed tree: up to [`WIDTH`] children, their boxes as structure of arrays. 128 bytes, two
+/// per 256 bytes of cache.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[repr(C, align(64))]
+struct Node4 {
+    /// `lo[axis][slot]`: the children's box minima; unused slots hold an empty box.
+    lo: [[f32; WIDTH]; 3],
+    /// `hi[axis][slot]`: the children's box maxima.
+    hi: [[f32; WIDTH]; 3],
+    /// Interior child: its node index. Leaf child: its first primitive.
+    child: [u32; WIDTH],
+    /// Leaf child: its number of primitives (1..=[`MAX_LEAF`]); interior child: 0.
+    count: [u8; WIDTH],
+    /// For each octant (bit `a` set when the ray's direction is negative on axis `a`), the slots in visiting
+    /// order, two bits each from the lowest.
+    order: [u8; 8],
+    /// Number of used slots (1..=[`WIDTH`]).
+    n: u8,
+}
+
+const _: () = assert!(std::mem::size_of::<Node4>() == 128);
+
 /// A bounding volume hierarchy; leaves refer to ranges of primitives in the order [`Bvh::build`] returned.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Bvh {
-    nodes: Vec<Node>,
+    /// Depth-first; node 0 is the root.
+    nodes: Vec<Node4>,
+    /// The box around everything, `[min, max]`.
+    bounds: [[f32; 3]; 2],
 }
 
 /// A primitive during the build.
@@ -74,12 +134,22 @@ struct Ref {
     index: u32,
 }
 
+/// A traversal stack entry: a child slot's content and its near distance.
+#[derive(Clone, Copy)]
+struct Entry {
+    child: u32,
+    count: u32,
+    t0: f32,
+}
+
 /// A ray prepared for box tests.
 struct RayBox {
-    o: [f32; 3],
-    inv: [f32; 3],
-    /// 1 where the direction is negative: that axis enters the box through its max plane.
-    neg: [usize; 3],
+    o: [f32x4; 3],
+    inv: [f32x4; 3],
+    /// Whether the direction is negative on each axis: that axis enters a box through its max plane.
+    neg: [bool; 3],
+    /// The octant: bit `a` is `neg[a]`.
+    octant: usize,
 }
 
 impl RayBox {
@@ -87,33 +157,42 @@ impl RayBox {
     fn new(o: Vec3A, d: Vec3A) -> Self {
         // 1/±0 = ±∞; the sign comes from the inverse so that −0 counts as negative consistently.
         let inv = d.recip();
-        let neg = [usize::from(inv.x < 0.0), usize::from(inv.y < 0.0), usize::from(inv.z < 0.0)];
-        Self { o: o.to_array(), inv: inv.to_array(), neg }
+        let neg = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        let octant = usize::from(neg[0]) | usize::from(neg[1]) << 1 | usize::from(neg[2]) << 2;
+        Self {
+            o: [f32x4::splat(o.x), f32x4::splat(o.y), f32x4::splat(o.z)],
+            inv: [f32x4::splat(inv.x), f32x4::splat(inv.y), f32x4::splat(inv.z)],
+            neg,
+            octant,
+        }
     }
 
-    /// Whether the ray meets the box in `[0, tmax]`. A NaN slab distance (0·∞, a ray on a slab plane and
-    /// parallel to it) fails both comparisons and so leaves the interval unchanged: no false misses.
+    /// The four child boxes of `node` against `[0, tmax]`: a bit mask of the slots hit and their near distances.
+    /// Lane by lane this is the scalar slab test `near = (b_near − o)·inv`, `far = (b_far − o)·inv·(1 + 2γ(3))`,
+    /// `t0 = max(0, near…)`, `t1 = min(tmax, far…)`, hit when `t0 ≤ t1`. A NaN slab distance (0·∞, a ray on a
+    /// slab plane and parallel to it) fails both comparisons and so leaves the interval unchanged: no false
+    /// misses.
     #[inline(always)]
-    fn hits(&self, b: &[[f32; 3]; 2], tmax: f32) -> bool {
-        let mut t0 = 0.0f32;
-        let mut t1 = tmax;
+    fn hits(&self, node: &Node4, tmax: f32) -> (u32, [f32; WIDTH]) {
+        let mut t0 = f32x4::splat(0.0);
+        let mut t1 = f32x4::splat(tmax);
+        let scale = f32x4::splat(FAR_SCALE);
         for a in 0..3 {
-            let near = (b[self.neg[a]][a] - self.o[a]) * self.inv[a];
-            let far = (b[1 - self.neg[a]][a] - self.o[a]) * self.inv[a] * FAR_SCALE;
-            if near > t0 {
-                t0 = near;
-            }
-            if far < t1 {
-                t1 = far;
-            }
+            let (bn, bf) = if self.neg[a] { (node.hi[a], node.lo[a]) } else { (node.lo[a], node.hi[a]) };
+            let near = (f32x4::from(bn) - self.o[a]) * self.inv[a];
+            let far = (f32x4::from(bf) - self.o[a]) * self.inv[a] * scale;
+            t0 = near.simd_gt(t0).bitselect(near, t0);
+            t1 = far.simd_lt(t1).bitselect(far, t1);
         }
-        t0 <= t1
+        let used = (1u32 << node.n) - 1;
+        (t0.simd_le(t1).to_bitmask() & used, t0.to_array())
     }
 }
 
 impl Bvh {
-    /// Deterministic binned-SAH build over primitive bounds. Returns the BVH and `order`: the caller reorders its
-    /// primitives as `new[i] = old[order[i]]`, and the leaves refer to contiguous ranges of that new array.
+    /// Deterministic binned-SAH build over primitive bounds, on the current rayon pool; the same bounds give
+    /// the same BVH for any number of threads. Returns the BVH and `order`: the caller reorders its primitives as
+    /// `new[i] = old[order[i]]`, and the leaves refer to contiguous ranges of that new array.
     ///
     /// # Panics
     /// With 2³² − 1 or more primitives, which `u32` indices cannot address.
@@ -122,23 +201,15 @@ impl Bvh {
             return (Bvh::default(), Vec::new());
         }
         assert!(bounds.len() < u32::MAX as usize, "a BVH holds fewer than 2^32 primitives");
-        let mut refs: Vec<Ref> = bounds
-            .iter()
-            .enumerate()
-            .map(|(i, &b)| {
-                let c = b.center();
-                let c = Vec3::select(c.is_finite_mask(), c, Vec3::ZERO);
-                Ref { bounds: b, c, index: i as u32 }
-            })
-            .collect();
-        let mut nodes = Vec::with_capacity(bounds.len().div_ceil(2).max(1));
-        build_node(&mut refs, 0, 0, &mut nodes);
+        let (binary, order) = build_binary(bounds);
+        let mut nodes = collapse(&binary);
         nodes.shrink_to_fit();
-        (Bvh { nodes }, refs.iter().map(|r| r.index).collect())
+        (Bvh { nodes, bounds: binary[0].b }, order)
     }
 
     /// Closest hit: `hit(prim, current_tmax)` returns a `t < current_tmax` if primitive `prim` (in the new order)
-    /// is hit closer. Returns the primitive and distance of the closest hit in `(0, tmax)`.
+    /// is hit closer. Returns the primitive and distance of the closest hit in `(0, tmax)`; of hits at equal
+    /// distance, the first tested (the binary tree's near-first order).
     pub fn closest_hit(
         &self,
         o: Vec3A,
@@ -146,71 +217,62 @@ impl Bvh {
         tmax: f32,
         mut hit: impl FnMut(u32, f32) -> Option<f32>,
     ) -> Option<(u32, f32)> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let ray = RayBox::new(o, d);
         let mut tmax = tmax;
         let mut best = None;
-        let mut stack = [0u32; MAX_DEPTH];
-        let mut sp = 0;
-        let mut i = 0usize;
-        loop {
-            let node = &self.nodes[i];
-            if ray.hits(&node.b, tmax) {
-                if node.count == 0 {
-                    // Visit the child on the ray's near side of the split plane first.
-                    let (near, far) = if ray.neg[node.axis as usize] == 1 {
-                        (node.offset, i as u32 + 1)
-                    } else {
-                        (i as u32 + 1, node.offset)
-                    };
-                    stack[sp] = far;
-                    sp += 1;
-                    i = near as usize;
-                    continue;
-                }
-                for p in node.offset..node.offset + u32::from(node.count) {
-                    if let Some(t) = hit(p, tmax)
-                        && t < tmax
-                    {
-                        tmax = t;
-                        best = Some((p, t));
-                    }
+        self.walk(o, d, &mut tmax, |first, count, tmax| {
+            for p in first..first + count {
+                if let Some(t) = hit(p, *tmax)
+                    && t < *tmax
+                {
+                    *tmax = t;
+                    best = Some((p, t));
                 }
             }
-            if sp == 0 {
-                return best;
-            }
-            sp -= 1;
-            i = stack[sp] as usize;
-        }
+            false
+        });
+        best
     }
 
     /// Any hit in `(0, tmax)`: stops at the first primitive for which `hit(prim, tmax)` is true.
     pub fn any_hit(&self, o: Vec3A, d: Vec3A, tmax: f32, mut hit: impl FnMut(u32, f32) -> bool) -> bool {
+        let mut tmax = tmax;
+        self.walk(o, d, &mut tmax, |first, count, tmax| (first..first + count).any(|p| hit(p, *tmax)))
+    }
+
+    /// Visits the leaves whose boxes the ray meets within `[0, tmax]`, in the binary tree's near-first order,
+    /// testing each leaf's box with `tmax` as `leaf(first, count, tmax)` left it; stops when `leaf` returns true
+    /// and returns whether it did.
+    #[inline(always)]
+    fn walk(&self, o: Vec3A, d: Vec3A, tmax: &mut f32, mut leaf: impl FnMut(u32, u32, &mut f32) -> bool) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
         let ray = RayBox::new(o, d);
-        let mut stack = [0u32; MAX_DEPTH];
+        let mut stack = [Entry { child: 0, count: 0, t0: 0.0 }; STACK];
         let mut sp = 0;
-        let mut i = 0usize;
+        let mut e = Entry { child: 0, count: 0, t0: 0.0 };
         loop {
-            let node = &self.nodes[i];
-            if ray.hits(&node.b, tmax) {
-                if node.count == 0 {
-                    let (near, far) = if ray.neg[node.axis as usize] == 1 {
-                        (node.offset, i as u32 + 1)
-                    } else {
-                        (i as u32 + 1, node.offset)
-                    };
-                    stack[sp] = far;
-                    sp += 1;
-                    i = near as usize;
-                    continue;
-                }
-                if (node.offset..node.offset + u32::from(node.count)).any(|p| hit(p, tmax)) {
+            if e.t0 <= *tmax {
+                if e.count == 0 {
+                    let node = &self.nodes[e.child as usize];
+                    let (mask, t0) = ray.hits(node, *tmax);
+                    if mask != 0 {
+                        let order = node.order[ray.octant];
+                        // Push the hit children in reverse visiting order, then take the first off again: the
+                        // loop goes on with it at once (its t0 passed with this tmax).
+                        for k in (0..u32::from(node.n)).rev() {
+                            let slot = usize::from((order >> (2 * k)) & 3);
+                            if mask & (1 << slot) != 0 {
+                                stack[sp] =
+                                    Entry { child: node.child[slot], count: u32::from(node.count[slot]), t0: t0[slot] };
+                                sp += 1;
+                            }
+                        }
+                        sp -= 1;
+                        e = stack[sp];
+                        continue;
+                    }
+                } else if leaf(e.child, e.count, tmax) {
                     return true;
                 }
             }
@@ -218,35 +280,170 @@ impl Bvh {
                 return false;
             }
             sp -= 1;
-            i = stack[sp] as usize;
+            e = stack[sp];
         }
     }
 
-    /// Number of nodes (0 for an empty BVH).
+    /// Number of nodes of the traversed tree (0 for an empty BVH).
     pub fn node_count(&self) -> usize {
         self.nodes.len()
     }
 
     /// Heap bytes of the BVH itself.
     pub fn memory_bytes(&self) -> usize {
-        self.nodes.capacity() * std::mem::size_of::<Node>()
+        self.nodes.capacity() * std::mem::size_of::<Node4>()
     }
 
     /// The box around everything (empty for an empty BVH).
     pub fn bounds(&self) -> Aabb {
-        self.nodes
-            .first()
-            .map_or(Aabb::EMPTY, |n| Aabb { min: Vec3::from_array(n.b[0]), max: Vec3::from_array(n.b[1]) })
+        if self.nodes.is_empty() {
+            Aabb::EMPTY
+        } else {
+            Aabb { min: Vec3::from_array(self.bounds[0]), max: Vec3::from_array(self.bounds[1]) }
+        }
     }
 
-    /// Depth of the deepest leaf (the root has depth 0); 0 for an empty BVH.
+    /// Depth of the deepest leaf of the traversed tree (the root's slots have depth 1); 0 for an empty BVH.
     pub fn depth(&self) -> usize {
-        fn rec(nodes: &[Node], i: usize) -> usize {
+        fn rec(nodes: &[Node4], i: usize) -> usize {
             let n = &nodes[i];
-            if n.count > 0 { 0 } else { 1 + rec(nodes, i + 1).max(rec(nodes, n.offset as usize)) }
+            1 + (0..usize::from(n.n))
+                .filter(|&k| n.count[k] == 0)
+                .map(|k| rec(nodes, n.child[k] as usize))
+                .max()
+                .unwrap_or(0)
         }
         if self.nodes.is_empty() { 0 } else { rec(&self.nodes, 0) }
     }
+
+    /// A hash (FNV-1a, 64 bits) of every node's bytes: equal for equal trees, for comparing builds.
+    pub fn structure_hash(&self) -> u64 {
+        let mut h = 0xcbf2_9ce4_8422_2325u64;
+        let mut eat = |x: u32| {
+            for byte in x.to_le_bytes() {
+                h = (h ^ u64::from(byte)).wrapping_mul(0x0100_0000_01b3);
+            }
+        };
+        for n in &self.nodes {
+            n.lo.iter().chain(&n.hi).flatten().for_each(|v| eat(v.to_bits()));
+            n.child.iter().for_each(|&c| eat(c));
+            eat(u32::from_le_bytes(n.count));
+            n.order.chunks(4).for_each(|c| eat(c.iter().fold(0, |a, &b| a << 8 | u32::from(b))));
+            eat(u32::from(n.n));
+        }
+        self.bounds.iter().flatten().for_each(|v| eat(v.to_bits()));
+        h
+    }
+}
+
+/// The binary SAH tree over non-empty `bounds` (root at 0, depth-first) and the primitive order.
+fn build_binary(bounds: &[Aabb]) -> (Vec<Node>, Vec<u32>) {
+    let mut refs: Vec<Ref> = bounds
+        .par_iter()
+        .enumerate()
+        .map(|(i, &b)| {
+            let c = b.center();
+            let c = Vec3::select(c.is_finite_mask(), c, Vec3::ZERO);
+            Ref { bounds: b, c, index: i as u32 }
+        })
+        .collect();
+    let mut binary = Vec::with_capacity(bounds.len() + bounds.len() / 4);
+    build_node(&mut refs, 0, 0, &mut binary);
+    (binary, refs.iter().map(|r| r.index).collect())
+}
+
+/// Collapses the binary tree (root at 0) into [`Node4`]s, depth-first.
+fn collapse(binary: &[Node]) -> Vec<Node4> {
+    let mut out = Vec::with_capacity(binary.len() / 3 + 1);
+    if binary[0].count > 0 {
+        // A root leaf: one node with one slot.
+        let mut node = empty_node4();
+        set_slot(&mut node, 0, &binary[0]);
+        node.child[0] = binary[0].offset;
+        node.n = 1;
+        out.push(node);
+    } else {
+        collapse_node(binary, 0, &mut out);
+    }
+    out
+}
+
+fn empty_node4() -> Node4 {
+    let e = Aabb::EMPTY;
+    Node4 {
+        lo: [[e.min.x; WIDTH], [e.min.y; WIDTH], [e.min.z; WIDTH]],
+        hi: [[e.max.x; WIDTH], [e.max.y; WIDTH], [e.max.z; WIDTH]],
+        child: [0; WIDTH],
+        count: [0; WIDTH],
+        order: [0; 8],
+        n: 0,
+    }
+}
+
+/// Copies binary node `b`'s box and leaf count into slot `k`.
+fn set_slot(node: &mut Node4, k: usize, b: &Node) {
+    for a in 0..3 {
+        node.lo[a][k] = b.b[0][a];
+        node.hi[a][k] = b.b[1][a];
+    }
+    node.count[k] = b.count as u8;
+}
+
+/// Appends the [`Node4`] for interior binary node `b` and those below it; returns its index.
+fn collapse_node(binary: &[Node], b: usize, out: &mut Vec<Node4>) -> u32 {
+    let half_area = |i: usize| {
+        let n = &binary[i];
+        Aabb { min: Vec3::from_array(n.b[0]), max: Vec3::from_array(n.b[1]) }.half_area()
+    };
+    // Slots in the binary tree's first-then-second order; open the interior slot of largest area (the first
+    // on ties) until there are WIDTH.
+    let mut slots = [0usize; WIDTH];
+    slots[0] = b + 1;
+    slots[1] = binary[b].offset as usize;
+    let mut n = 2;
+    while n < WIDTH {
+        let mut pick: Option<(usize, f32)> = None;
+        for (k, &s) in slots[..n].iter().enumerate() {
+            if binary[s].count == 0 && pick.is_none_or(|(_, a)| half_area(s) > a) {
+                pick = Some((k, half_area(s)));
+            }
+        }
+        let Some((k, _)) = pick else { break };
+        let s = slots[k];
+        slots.copy_within(k + 1..n, k + 2);
+        slots[k] = s + 1;
+        slots[k + 1] = binary[s].offset as usize;
+        n += 1;
+    }
+    let index = out.len();
+    out.push(empty_node4());
+    let mut node = empty_node4();
+    node.n = n as u8;
+    for (octant, order) in node.order.iter_mut().enumerate() {
+        let mut k = 0;
+        visit_order(binary, b, &slots[..n], octant, order, &mut k);
+    }
+    for (k, &s) in slots[..n].iter().enumerate() {
+        set_slot(&mut node, k, &binary[s]);
+        node.child[k] = if binary[s].count > 0 { binary[s].offset } else { collapse_node(binary, s, out) };
+    }
+    out[index] = node;
+    index as u32
+}
+
+/// Appends to `order` (two bits per slot, from bit `2k`) the slots below binary node `b` in the order the binary
+/// traversal visits them for rays in `octant`: the second child first when the direction is negative along the
+/// split axis.
+fn visit_order(binary: &[Node], b: usize, slots: &[usize], octant: usize, order: &mut u8, k: &mut u32) {
+    if let Some(slot) = slots.iter().position(|&s| s == b) {
+        *order |= (slot as u8) << (2 * *k);
+        *k += 1;
+        return;
+    }
+    let (first, second) = (b + 1, binary[b].offset as usize);
+    let (near, far) = if (octant >> binary[b].axis) & 1 == 1 { (second, first) } else { (first, second) };
+    visit_order(binary, near, slots, octant, order, k);
+    visit_order(binary, far, slots, octant, order, k);
 }
 
 /// How to split a node's primitives.
@@ -259,10 +456,26 @@ enum Split {
     Median,
 }
 
+/// Applies `f` to `refs`, in chunks of [`CHUNK`] on rayon when there are more than [`PARALLEL_BINNING`], and
+/// merges the chunks' results in order.
+fn chunked<T: Send>(refs: &[Ref], f: impl Fn(&[Ref]) -> T + Sync + Send, merge: impl Fn(T, T) -> T) -> T {
+    if refs.len() <= PARALLEL_BINNING {
+        return f(refs);
+    }
+    let parts: Vec<T> = refs.par_chunks(CHUNK).map(&f).collect();
+    let mut parts = parts.into_iter();
+    // There is at least one chunk, since refs is longer than PARALLEL_BINNING.
+    let first = parts.next().unwrap_or_else(|| f(&[]));
+    parts.fold(first, merge)
+}
+
 /// Builds the subtree over `refs` (which start at primitive `first`), appending its nodes depth-first.
 fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
-    let bounds = refs.iter().fold(Aabb::EMPTY, |b, r| b.union(r.bounds));
-    let cbounds = refs.iter().fold(Aabb::EMPTY, |b, r| b.grow(r.c));
+    let (bounds, cbounds) = chunked(
+        refs,
+        |rs| rs.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), r| (b.union(r.bounds), c.grow(r.c))),
+        |(b0, c0), (b1, c1)| (b0.union(b1), c0.union(c1)),
+    );
     let index = nodes.len();
     nodes.push(Node::new(bounds));
     let n = refs.len();
@@ -298,11 +511,39 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
         }
     };
     let (left, right) = refs.split_at_mut(mid);
-    build_node(left, first, depth + 1, nodes);
-    let second = nodes.len() as u32;
-    build_node(right, first + mid as u32, depth + 1, nodes);
-    nodes[index].offset = second;
+    // The tree does not depend on which branch runs; one thread gains nothing from the copies of the first.
+    if n > PARALLEL_SUBTREE && rayon::current_num_threads() > 1 {
+        // Both halves as tasks into their own arrays, then appended: the node indices they hold are relative to
+        // their own start until shifted.
+        let build = |refs: &mut [Ref], first: u32| {
+            // About 1.1 nodes per primitive with leaves of up to MAX_LEAF.
+            let mut v = Vec::with_capacity(refs.len() + refs.len() / 4);
+            build_node(refs, first, depth + 1, &mut v);
+            v
+        };
+        let (l, r) = rayon::join(|| build(left, first), || build(right, first + mid as u32));
+        append_shifted(nodes, l);
+        let second = nodes.len() as u32;
+        append_shifted(nodes, r);
+        nodes[index].offset = second;
+    } else {
+        build_node(left, first, depth + 1, nodes);
+        let second = nodes.len() as u32;
+        build_node(right, first + mid as u32, depth + 1, nodes);
+        nodes[index].offset = second;
+    }
     nodes[index].axis = axis as u8;
+}
+
+/// Appends a subtree built with indices from 0, shifting its interior nodes' child indices to where it lands.
+fn append_shifted(nodes: &mut Vec<Node>, sub: Vec<Node>) {
+    let base = nodes.len() as u32;
+    nodes.extend(sub.into_iter().map(|mut n| {
+        if n.count == 0 {
+            n.offset += base;
+        }
+        n
+    }));
 }
 
 /// Lower centroid bound and bins-per-unit scale along `axis`; the scale is 0 for a flat or non-finite extent,
@@ -321,18 +562,33 @@ fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
     (((c - lo) * scale) as usize).min(BINS - 1)
 }
 
+/// Per axis and bin: the union of the boxes and the count of the primitives whose centroids fall in it.
+type Bins = [[(Aabb, u32); BINS]; 3];
+
 /// Chooses the cheapest binned split over all axes, or a leaf when that is cheaper and small enough.
 fn sah_split(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb) -> Split {
     let n = refs.len();
     let params = [bin_params(cbounds, 0), bin_params(cbounds, 1), bin_params(cbounds, 2)];
-    let mut bins = [[(Aabb::EMPTY, 0u32); BINS]; 3];
-    for r in refs {
-        for (axis, &(lo, scale)) in params.iter().enumerate() {
-            let b = &mut bins[axis][bin_of(r.c[axis], lo, scale)];
-            b.0 = b.0.union(r.bounds);
-            b.1 += 1;
-        }
-    }
+    let bins: Bins = chunked(
+        refs,
+        |rs| {
+            let mut bins = [[(Aabb::EMPTY, 0u32); BINS]; 3];
+            for r in rs {
+                for (axis, &(lo, scale)) in params.iter().enumerate() {
+                    let b = &mut bins[axis][bin_of(r.c[axis], lo, scale)];
+                    b.0 = b.0.union(r.bounds);
+                    b.1 += 1;
+                }
+            }
+            bins
+        },
+        |mut a, b| {
+            for (a, b) in a.iter_mut().flatten().zip(b.iter().flatten()) {
+                *a = (a.0.union(b.0), a.1 + b.1);
+            }
+            a
+        },
+    );
     // Cost in units of one primitive test times the parent's half area: (A_l·N_l + A_r·N_r).
     let mut best: Option<(f32, usize, usize)> = None;
     for (axis, bins) in bins.iter().enumerate() {
@@ -394,7 +650,8 @@ fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::math::fmath;
+    use crate::geometry::shapes::Triangle;
+    use crate::math::{Ray, fmath};
 
     fn cube(c: Vec3, h: f32) -> Aabb {
         Aabb { min: c - Vec3::splat(h), max: c + Vec3::splat(h) }
@@ -513,6 +770,146 @@ mod tests {
                 h.is_some()
             );
         }
+    }
+
+    /// The binary tree's traversal, as it was before the collapse: the scalar slab test and a near-first walk.
+    /// Returns what `leaf` returned true for, or the end of the walk.
+    fn binary_walk(nodes: &[Node], o: Vec3A, d: Vec3A, tmax: &mut f32, mut leaf: impl FnMut(u32, &mut f32) -> bool) {
+        let inv = d.recip();
+        let neg = [usize::from(inv.x < 0.0), usize::from(inv.y < 0.0), usize::from(inv.z < 0.0)];
+        let hits = |b: &[[f32; 3]; 2], tmax: f32| {
+            let (mut t0, mut t1) = (0.0f32, tmax);
+            for a in 0..3 {
+                let near = (b[neg[a]][a] - o[a]) * inv[a];
+                let far = (b[1 - neg[a]][a] - o[a]) * inv[a] * FAR_SCALE;
+                if near > t0 {
+                    t0 = near;
+                }
+                if far < t1 {
+                    t1 = far;
+                }
+            }
+            t0 <= t1
+        };
+        let mut stack = Vec::new();
+        let mut i = 0usize;
+        loop {
+            let node = &nodes[i];
+            if hits(&node.b, *tmax) {
+                if node.count == 0 {
+                    let (near, far) = if neg[node.axis as usize] == 1 {
+                        (node.offset, i as u32 + 1)
+                    } else {
+                        (i as u32 + 1, node.offset)
+                    };
+                    stack.push(far);
+                    i = near as usize;
+                    continue;
+                }
+                for p in node.offset..node.offset + u32::from(node.count) {
+                    if leaf(p, tmax) {
+                        return;
+                    }
+                }
+            }
+            match stack.pop() {
+                Some(next) => i = next as usize,
+                None => return,
+            }
+        }
+    }
+
+    /// Triangles with many exact ties: a soup with duplicates and degenerate triangles, and a grid of unit
+    /// squares (two triangles each) in the plane z = 2 whose shared edges and vertices rays hit exactly.
+    fn tie_scene(s: &mut crate::math::rng::Sampler) -> Vec<Triangle> {
+        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
+        let mut tris: Vec<Triangle> = Vec::new();
+        for k in 0..3000 {
+            let c = 8.0 * v();
+            let t = match k % 10 {
+                0 => Triangle::new(c, c, c),
+                1 => Triangle::new(c, c + Vec3::X, c + 2.0 * Vec3::X),
+                2 | 3 if !tris.is_empty() => tris[(8.0 * c.x) as usize % tris.len()],
+                _ => Triangle::new(c, c + 0.7 * (v() - 0.5), c + 0.7 * (v() - 0.5)),
+            };
+            tris.push(t);
+        }
+        for y in 0..8 {
+            for x in 0..8 {
+                let p = |dx: i32, dy: i32| Vec3::new((x + dx) as f32, (y + dy) as f32, 2.0);
+                tris.push(Triangle::new(p(0, 0), p(1, 0), p(1, 1)));
+                tris.push(Triangle::new(p(0, 0), p(1, 1), p(0, 1)));
+            }
+        }
+        tris
+    }
+
+    #[test]
+    fn wide_traversal_tests_the_same_primitives_as_the_binary_tree() {
+        let mut s = crate::math::rng::Sampler::new(5, crate::math::rng::Domain::Photon, 0, 0, 0);
+        let tris = tie_scene(&mut s);
+        let bounds: Vec<Aabb> = tris.iter().map(Triangle::bounds).collect();
+        let (bvh, order) = Bvh::build(&bounds);
+        let (binary, binary_order) = build_binary(&bounds);
+        assert_eq!(order, binary_order);
+        let tris: Vec<Triangle> = order.iter().map(|&i| tris[i as usize]).collect();
+        let mut rays: Vec<Ray> = Vec::new();
+        for k in 0..40_000 {
+            let (o, d) = match k % 4 {
+                // Straight down through grid vertices and edge midpoints: ties between the triangles sharing them.
+                0 => (Vec3A::new((k % 17) as f32 * 0.5, (k % 13) as f32 * 0.5, 5.0), Vec3A::NEG_Z),
+                // In the grid's plane, along an axis: on slab planes, with NaN slab distances.
+                1 => (Vec3A::new(-1.0, (k % 9) as f32, 2.0), Vec3A::X),
+                _ => (
+                    Vec3A::new(10.0 * s.next_f32() - 1.0, 10.0 * s.next_f32() - 1.0, 10.0 * s.next_f32() - 1.0),
+                    crate::math::uniform_sphere(s.next_2d()),
+                ),
+            };
+            rays.push(Ray::new(o, d));
+        }
+        let mut ties = 0;
+        for (k, ray) in rays.iter().enumerate() {
+            let tmax = if k % 5 == 0 { 4.0 } else { f32::INFINITY };
+            // Every call of the primitive test, with the tmax it was given, in order.
+            let mut wide_calls = Vec::new();
+            let wide = bvh.closest_hit(ray.o, ray.d, tmax, |p, t| {
+                wide_calls.push((p, t.to_bits()));
+                tris[p as usize].intersect(ray, t)
+            });
+            let mut binary_calls = Vec::new();
+            let mut best = None;
+            binary_walk(&binary, ray.o, ray.d, &mut tmax.clone(), |p, t| {
+                binary_calls.push((p, t.to_bits()));
+                if let Some(h) = tris[p as usize].intersect(ray, *t)
+                    && h < *t
+                {
+                    *t = h;
+                    best = Some((p, h));
+                }
+                false
+            });
+            assert_eq!(wide_calls, binary_calls, "ray {k}: {ray:?}");
+            assert_eq!(wide.map(|(p, t)| (p, t.to_bits())), best.map(|(p, t)| (p, t.to_bits())), "ray {k}");
+            if let Some((_, t)) = wide {
+                ties += usize::from(tris.iter().filter(|tri| tri.intersect(ray, f32::INFINITY) == Some(t)).count() > 1);
+            }
+            let mut wide_calls = Vec::new();
+            let wide_any = bvh.any_hit(ray.o, ray.d, tmax, |p, t| {
+                wide_calls.push(p);
+                tris[p as usize].intersect(ray, t).is_some()
+            });
+            let mut binary_calls = Vec::new();
+            let mut binary_any = false;
+            binary_walk(&binary, ray.o, ray.d, &mut tmax.clone(), |p, t| {
+                binary_calls.push(p);
+                binary_any = tris[p as usize].intersect(ray, *t).is_some();
+                binary_any
+            });
+            assert_eq!(wide_calls, binary_calls, "ray {k}: any hit");
+            assert_eq!(wide_any, binary_any);
+        }
+        // The ties were there to break: closest hits shared by two or more triangles at the same distance.
+        assert!(ties > 1000, "{ties} ties");
     }
 
     #[test]
