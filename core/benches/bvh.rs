@@ -7,14 +7,19 @@
 //! Any-hit rays are the same rays with an infinite `tmax`. Bytes per triangle count the BVH alone and the BVH
 //! plus the primitive array traversal reads.
 
+#[allow(dead_code)]
+mod shared {
+    pub mod meshes;
+}
+
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use photon_core::geometry::bvh::Bvh;
-use photon_core::geometry::shapes::{Shape, Triangle};
+use photon_core::geometry::shapes::{Shape, Triangle, TriangleRay};
 use photon_core::geometry::{Geometry, NONE, Primitive};
 use photon_core::math::fmath;
-use photon_core::math::rng::{Domain, Sampler};
 use photon_core::math::{Aabb, Ray};
+use shared::meshes::{camera_rays, random_rays};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -39,37 +44,6 @@ fn displaced_sphere(rows: usize, cols: usize) -> Vec<Triangle> {
     tris
 }
 
-/// Rays of a `w × h` pinhole camera at `(0, 0.3, 3)` looking at the origin with a 45° vertical field of view.
-fn camera_rays(w: usize, h: usize) -> Vec<Ray> {
-    let o = Vec3A::new(0.0, 0.3, 3.0);
-    let fwd = fmath::normalize(-o);
-    let right = fmath::normalize(fmath::cross(fwd, Vec3A::Y));
-    let up = fmath::cross(right, fwd);
-    let tan = fmath::tan((22.5f32).to_radians());
-    let mut rays = Vec::with_capacity(w * h);
-    for y in 0..h {
-        for x in 0..w {
-            let sx = (2.0 * (x as f32 + 0.5) / w as f32 - 1.0) * tan * w as f32 / h as f32;
-            let sy = (1.0 - 2.0 * (y as f32 + 0.5) / h as f32) * tan;
-            rays.push(Ray::new(o, fmath::normalize(fwd + sx * right + sy * up)));
-        }
-    }
-    rays
-}
-
-/// `n` rays from uniform points in `bounds` in uniform directions.
-fn random_rays(n: usize, bounds: Aabb) -> Vec<Ray> {
-    let mut s = Sampler::new(7, Domain::Photon, 0, 0, 0);
-    (0..n)
-        .map(|_| {
-            let u = Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
-            let o = bounds.min + u * (bounds.max - bounds.min);
-            let d = photon_core::math::uniform_sphere(s.next_2d());
-            Ray::new(Vec3A::from(o), d)
-        })
-        .collect()
-}
-
 fn geometry(tris: &[Triangle]) -> Geometry {
     let prims =
         tris.iter().map(|&t| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: 0 }).collect();
@@ -80,8 +54,11 @@ fn geometry(tris: &[Triangle]) -> Geometry {
 fn trace(g: &Geometry, rays: &[Ray]) -> usize {
     rays.iter()
         .filter(|ray| {
+            let tri = TriangleRay::new(ray);
             g.bvh
-                .closest_hit(ray.o, ray.d, f32::INFINITY, |i, tmax| g.prims[i as usize].shape.intersect(ray, tmax))
+                .closest_hit(ray.o, ray.d, f32::INFINITY, |i, tmax| {
+                    g.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax)
+                })
                 .is_some()
         })
         .count()
@@ -89,13 +66,7 @@ fn trace(g: &Geometry, rays: &[Ray]) -> usize {
 
 /// Traces every ray to any hit through the BVH; returns the number of occluded rays.
 fn occluded(g: &Geometry, rays: &[Ray]) -> usize {
-    rays.iter()
-        .filter(|ray| {
-            g.bvh.any_hit(ray.o, ray.d, f32::INFINITY, |i, tmax| {
-                g.prims[i as usize].shape.intersect(ray, tmax).is_some()
-            })
-        })
-        .count()
+    rays.iter().filter(|ray| g.occluded(ray, f32::INFINITY)).count()
 }
 
 fn bench(c: &mut Criterion) {

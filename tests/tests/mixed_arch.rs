@@ -9,6 +9,10 @@
 
 #![allow(clippy::unwrap_used)]
 
+#[allow(dead_code)]
+#[path = "../../core/benches/shared/meshes.rs"]
+mod meshes;
+
 use photon_core::image_io::Image;
 use photon_core::metrics::compare;
 use photon_tests::{WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir};
@@ -89,65 +93,10 @@ fn strips_and_speculative(o: &Output, addr: &str) -> (u32, u32) {
 /// A bumpy icosphere of 20·4⁵ = 20480 triangles of about unit radius, as OBJ text: deep enough BVHs (two of
 /// them in a scene) for the wide traversal's ordering, ties on shared edges and SIMD box tests to matter.
 fn bumpy_icosphere_obj() -> String {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<[f64; 3]> = [
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ]
-    .to_vec();
-    let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..5 {
-        let mut mid = std::collections::HashMap::new();
-        let mut split = |a: usize, b: usize, v: &mut Vec<[f64; 3]>| {
-            *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                v.push([0, 1, 2].map(|k| 0.5 * (v[a][k] + v[b][k])));
-                v.len() - 1
-            })
-        };
-        faces = faces
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let (ab, bc, ca) = (split(a, b, &mut v), split(b, c, &mut v), split(c, a, &mut v));
-                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-            })
-            .collect();
-    }
+    let (vertices, faces) = meshes::bumpy_icosphere(5);
     let mut obj = String::new();
-    for p in &v {
-        let len = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-        let bump = 1.0 + 0.06 * (9.0 * p[0] / len).sin() * (7.0 * p[1] / len).sin() * (11.0 * p[2] / len).sin();
-        obj += &format!("v {:.6} {:.6} {:.6}\n", bump * p[0] / len, bump * p[1] / len, bump * p[2] / len);
+    for p in &vertices {
+        obj += &format!("v {} {} {}\n", p[0], p[1], p[2]);
     }
     for f in &faces {
         obj += &format!("f {} {} {}\n", f[0] + 1, f[1] + 1, f[2] + 1);

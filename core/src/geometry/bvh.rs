@@ -125,10 +125,39 @@ pub struct Bvh {
     bounds: [[f32; 3]; 2],
 }
 
-/// A primitive during the build.
+/// A box held in SIMD registers during the build. `union` takes each coordinate by comparison and select, so a NaN
+/// coordinate of the box added is ignored, as `f32::min` and `f32::max` ignore it, on every target.
+#[derive(Clone, Copy)]
+struct Box3 {
+    min: Vec3A,
+    max: Vec3A,
+}
+
+impl Box3 {
+    const EMPTY: Box3 = Box3 { min: Vec3A::splat(f32::INFINITY), max: Vec3A::splat(f32::NEG_INFINITY) };
+
+    #[inline(always)]
+    fn union(self, o: Box3) -> Box3 {
+        Box3 {
+            min: Vec3A::select(o.min.cmplt(self.min), o.min, self.min),
+            max: Vec3A::select(o.max.cmpgt(self.max), o.max, self.max),
+        }
+    }
+
+    #[inline(always)]
+    fn grow(self, p: Vec3A) -> Box3 {
+        self.union(Box3 { min: p, max: p })
+    }
+
+    fn aabb(self) -> Aabb {
+        Aabb { min: self.min.into(), max: self.max.into() }
+    }
+}
+
+/// A primitive during the build (48 bytes).
 #[derive(Clone, Copy)]
 struct Ref {
-    bounds: Aabb,
+    b: Box3,
     /// Centroid, with non-finite components (empty or infinite boxes) replaced by 0 so binning stays defined.
     c: Vec3,
     index: u32,
@@ -140,6 +169,15 @@ struct Entry {
     child: u32,
     count: u32,
     t0: f32,
+}
+
+impl Entry {
+    const ZERO: Entry = Entry { child: 0, count: 0, t0: 0.0 };
+}
+
+thread_local! {
+    /// Each thread's traversal stack.
+    static STACKS: std::cell::RefCell<[Entry; STACK]> = const { std::cell::RefCell::new([Entry::ZERO; STACK]) };
 }
 
 /// A ray prepared for box tests.
@@ -243,14 +281,31 @@ impl Bvh {
     /// testing each leaf's box with `tmax` as `leaf(first, count, tmax)` left it; stops when `leaf` returns true
     /// and returns whether it did.
     #[inline(always)]
-    fn walk(&self, o: Vec3A, d: Vec3A, tmax: &mut f32, mut leaf: impl FnMut(u32, u32, &mut f32) -> bool) -> bool {
+    fn walk(&self, o: Vec3A, d: Vec3A, tmax: &mut f32, leaf: impl FnMut(u32, u32, &mut f32) -> bool) -> bool {
         if self.nodes.is_empty() {
             return false;
         }
+        // The stack is the thread's, so no ray pays for clearing 2 kB (it was a tenth of the traversal time); a
+        // walk started from inside another's leaf callback gets a fresh one.
+        STACKS.with(|stack| match stack.try_borrow_mut() {
+            Ok(mut stack) => self.walk_with(&mut stack, o, d, tmax, leaf),
+            Err(_) => self.walk_with(&mut [Entry::ZERO; STACK], o, d, tmax, leaf),
+        })
+    }
+
+    /// [`Bvh::walk`] on a given stack.
+    #[inline(always)]
+    fn walk_with(
+        &self,
+        stack: &mut [Entry; STACK],
+        o: Vec3A,
+        d: Vec3A,
+        tmax: &mut f32,
+        mut leaf: impl FnMut(u32, u32, &mut f32) -> bool,
+    ) -> bool {
         let ray = RayBox::new(o, d);
-        let mut stack = [Entry { child: 0, count: 0, t0: 0.0 }; STACK];
         let mut sp = 0;
-        let mut e = Entry { child: 0, count: 0, t0: 0.0 };
+        let mut e = Entry::ZERO;
         loop {
             if e.t0 <= *tmax {
                 if e.count == 0 {
@@ -344,11 +399,11 @@ fn build_binary(bounds: &[Aabb]) -> (Vec<Node>, Vec<u32>) {
         .map(|(i, &b)| {
             let c = b.center();
             let c = Vec3::select(c.is_finite_mask(), c, Vec3::ZERO);
-            Ref { bounds: b, c, index: i as u32 }
+            Ref { b: Box3 { min: b.min.into(), max: b.max.into() }, c, index: i as u32 }
         })
         .collect();
     let mut binary = Vec::with_capacity(bounds.len() + bounds.len() / 4);
-    build_node(&mut refs, 0, 0, &mut binary);
+    build_node(&mut refs, 0, 0, &mut binary, None);
     (binary, refs.iter().map(|r| r.index).collect())
 }
 
@@ -450,8 +505,8 @@ fn visit_order(binary: &[Node], b: usize, slots: &[usize], octant: usize, order:
 enum Split {
     /// Make a leaf.
     Leaf,
-    /// Left child gets centroids in bins `0..=bin` along `axis`.
-    Bin { axis: usize, bin: usize },
+    /// Left child gets centroids in bins `0..=bin` along `axis`; `left` and `right` are the children's boxes.
+    Bin { axis: usize, bin: usize, left: Box3, right: Box3 },
     /// Split at the centroid median along the widest centroid axis.
     Median,
 }
@@ -470,12 +525,17 @@ fn chunked<T: Send>(refs: &[Ref], f: impl Fn(&[Ref]) -> T + Sync + Send, merge: 
 }
 
 /// Builds the subtree over `refs` (which start at primitive `first`), appending its nodes depth-first.
-fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
-    let (bounds, cbounds) = chunked(
-        refs,
-        |rs| rs.iter().fold((Aabb::EMPTY, Aabb::EMPTY), |(b, c), r| (b.union(r.bounds), c.grow(r.c))),
-        |(b0, c0), (b1, c1)| (b0.union(b1), c0.union(c1)),
-    );
+///
+/// `extent` is the box and centroid box of `refs` when the parent's split already found them.
+fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>, extent: Option<Extent>) {
+    let (bounds, cbounds) = extent.unwrap_or_else(|| {
+        chunked(
+            refs,
+            |rs| rs.iter().fold((Box3::EMPTY, Box3::EMPTY), |(b, c), r| (b.union(r.b), c.grow(r.c.into()))),
+            |(b0, c0), (b1, c1)| (b0.union(b1), c0.union(c1)),
+        )
+    });
+    let (bounds, cbounds) = (bounds.aabb(), cbounds.aabb());
     let index = nodes.len();
     nodes.push(Node::new(bounds));
     let n = refs.len();
@@ -486,15 +546,16 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
     } else {
         sah_split(refs, &bounds, &cbounds)
     };
-    let (mid, axis) = match split {
+    let (mid, axis, extents) = match split {
         Split::Leaf => {
             nodes[index].offset = first;
             nodes[index].count = n as u16;
             return;
         }
-        Split::Bin { axis, bin } => {
+        Split::Bin { axis, bin, left, right } => {
             let (lo, scale) = bin_params(&cbounds, axis);
-            (partition(refs, |r| bin_of(r.c[axis], lo, scale) <= bin), axis)
+            let (mid, left_c, right_c) = partition(refs, |r| bin_of(r.c[axis], lo, scale) <= bin);
+            (mid, axis, [Some((left, left_c)), Some((right, right_c))])
         }
         Split::Median => {
             let ext = cbounds.max - cbounds.min;
@@ -507,29 +568,30 @@ fn build_node(refs: &mut [Ref], first: u32, depth: u32, nodes: &mut Vec<Node>) {
             };
             let mid = n / 2;
             refs.select_nth_unstable_by(mid, |a, b| a.c[axis].total_cmp(&b.c[axis]).then(a.index.cmp(&b.index)));
-            (mid, axis)
+            (mid, axis, [None, None])
         }
     };
+    let [left_extent, right_extent] = extents;
     let (left, right) = refs.split_at_mut(mid);
     // The tree does not depend on which branch runs; one thread gains nothing from the copies of the first.
     if n > PARALLEL_SUBTREE && rayon::current_num_threads() > 1 {
         // Both halves as tasks into their own arrays, then appended: the node indices they hold are relative to
         // their own start until shifted.
-        let build = |refs: &mut [Ref], first: u32| {
+        let build = |refs: &mut [Ref], first: u32, extent: Option<Extent>| {
             // About 1.1 nodes per primitive with leaves of up to MAX_LEAF.
             let mut v = Vec::with_capacity(refs.len() + refs.len() / 4);
-            build_node(refs, first, depth + 1, &mut v);
+            build_node(refs, first, depth + 1, &mut v, extent);
             v
         };
-        let (l, r) = rayon::join(|| build(left, first), || build(right, first + mid as u32));
+        let (l, r) = rayon::join(|| build(left, first, left_extent), || build(right, first + mid as u32, right_extent));
         append_shifted(nodes, l);
         let second = nodes.len() as u32;
         append_shifted(nodes, r);
         nodes[index].offset = second;
     } else {
-        build_node(left, first, depth + 1, nodes);
+        build_node(left, first, depth + 1, nodes, left_extent);
         let second = nodes.len() as u32;
-        build_node(right, first + mid as u32, depth + 1, nodes);
+        build_node(right, first + mid as u32, depth + 1, nodes, right_extent);
         nodes[index].offset = second;
     }
     nodes[index].axis = axis as u8;
@@ -562,21 +624,29 @@ fn bin_of(c: f32, lo: f32, scale: f32) -> usize {
     (((c - lo) * scale) as usize).min(BINS - 1)
 }
 
+/// A node's box and the box of its primitives' centroids.
+type Extent = (Box3, Box3);
+
 /// Per axis and bin: the union of the boxes and the count of the primitives whose centroids fall in it.
-type Bins = [[(Aabb, u32); BINS]; 3];
+type Bins = [[(Box3, u32); BINS]; 3];
 
 /// Chooses the cheapest binned split over all axes, or a leaf when that is cheaper and small enough.
 fn sah_split(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb) -> Split {
     let n = refs.len();
     let params = [bin_params(cbounds, 0), bin_params(cbounds, 1), bin_params(cbounds, 2)];
+    let lo = Vec3A::new(params[0].0, params[1].0, params[2].0);
+    let scale = Vec3A::new(params[0].1, params[1].1, params[2].1);
     let bins: Bins = chunked(
         refs,
         |rs| {
-            let mut bins = [[(Aabb::EMPTY, 0u32); BINS]; 3];
+            let mut bins = [[(Box3::EMPTY, 0u32); BINS]; 3];
             for r in rs {
-                for (axis, &(lo, scale)) in params.iter().enumerate() {
-                    let b = &mut bins[axis][bin_of(r.c[axis], lo, scale)];
-                    b.0 = b.0.union(r.bounds);
+                // `bin_of` on the three axes at once: the same subtraction and product in each lane.
+                let f = (Vec3A::from(r.c) - lo) * scale;
+                for (axis, bins) in bins.iter_mut().enumerate() {
+                    // `as` saturates (NaN → 0), and the top edge maps to BINS, hence the min.
+                    let b = &mut bins[(f[axis] as usize).min(BINS - 1)];
+                    b.0 = b.0.union(r.b);
                     b.1 += 1;
                 }
             }
@@ -595,22 +665,31 @@ fn sah_split(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb) -> Split {
         if params[axis].1 == 0.0 {
             continue;
         }
+        // Small nodes leave most bins empty, and an empty bin changes neither side's box nor count: its right
+        // cost is the next bin's, and its split costs exactly what the split before it costs, which the strict
+        // `<` below never prefers. Skipping them gives the same choice at a fraction of the work.
         let mut right_cost = [0.0f32; BINS];
-        let (mut rb, mut rn) = (Aabb::EMPTY, 0u32);
+        let (mut rb, mut rn, mut cost) = (Box3::EMPTY, 0u32, 0.0f32);
         for k in (1..BINS).rev() {
-            rb = rb.union(bins[k].0);
-            rn += bins[k].1;
-            right_cost[k] = rb.half_area() * rn as f32;
+            if bins[k].1 > 0 {
+                rb = rb.union(bins[k].0);
+                rn += bins[k].1;
+                cost = rb.aabb().half_area() * rn as f32;
+            }
+            right_cost[k] = cost;
         }
-        let (mut lb, mut ln) = (Aabb::EMPTY, 0u32);
+        let (mut lb, mut ln) = (Box3::EMPTY, 0u32);
         for k in 0..BINS - 1 {
+            if bins[k].1 == 0 {
+                continue;
+            }
             lb = lb.union(bins[k].0);
             ln += bins[k].1;
             // Both sides must be non-empty (so the right side's cost was set).
             if ln == 0 || ln as usize == n {
                 continue;
             }
-            let cost = lb.half_area() * ln as f32 + right_cost[k + 1];
+            let cost = lb.aabb().half_area() * ln as f32 + right_cost[k + 1];
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, k));
             }
@@ -620,28 +699,40 @@ fn sah_split(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb) -> Split {
     match best {
         Some((cost, axis, bin)) => {
             let split_cost = TRAVERSAL_COST * bounds.half_area() + cost;
-            if n <= MAX_LEAF && leaf_cost <= split_cost { Split::Leaf } else { Split::Bin { axis, bin } }
+            if n <= MAX_LEAF && leaf_cost <= split_cost {
+                Split::Leaf
+            } else {
+                let (l, r) = bins[axis].split_at(bin + 1);
+                let union = |bins: &[(Box3, u32)]| bins.iter().fold(Box3::EMPTY, |b, bin| b.union(bin.0));
+                Split::Bin { axis, bin, left: union(l), right: union(r) }
+            }
         }
         None if n <= MAX_LEAF => Split::Leaf,
         None => Split::Median,
     }
 }
 
-/// Moves the elements satisfying `left` to the front (a deterministic in-place partition); returns their count.
-fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> usize {
+/// Moves the elements satisfying `left` to the front (a deterministic in-place partition); returns their count
+/// and the boxes of the two sides' centroids (each element is classified once, and added to its side's box then).
+fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Box3, Box3) {
+    let (mut lc, mut rc) = (Box3::EMPTY, Box3::EMPTY);
     let mut i = 0;
     let mut j = refs.len();
     loop {
         while i < j && left(&refs[i]) {
+            lc = lc.grow(refs[i].c.into());
             i += 1;
         }
         while i < j && !left(&refs[j - 1]) {
+            rc = rc.grow(refs[j - 1].c.into());
             j -= 1;
         }
         if i >= j {
-            return i;
+            return (i, lc, rc);
         }
         refs.swap(i, j - 1);
+        lc = lc.grow(refs[i].c.into());
+        rc = rc.grow(refs[j - 1].c.into());
         i += 1;
         j -= 1;
     }

@@ -13,7 +13,7 @@ use crate::math::{Aabb, Ray, offset_ray_origin_by_error};
 use bvh::Bvh;
 use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};
-use shapes::{LocalHit, Plane, Shape};
+use shapes::{LocalHit, Plane, Shape, TriangleRay};
 
 /// Marks "no light" / "no index".
 pub const NONE: u32 = u32::MAX;
@@ -149,8 +149,10 @@ impl Geometry {
                 best = Some((PrimRef::Plane(i as u32), t));
             }
         }
-        if let Some((i, t)) =
-            self.bvh.closest_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect(ray, tmax))
+        let tri = TriangleRay::new(ray);
+        if let Some((i, t)) = self
+            .bvh
+            .closest_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax))
         {
             best = Some((PrimRef::Bounded(i), t));
         }
@@ -160,10 +162,13 @@ impl Geometry {
 
     /// Whether anything blocks `ray` in `(0, tmax)`.
     pub fn occluded(&self, ray: &Ray, tmax: f32) -> bool {
-        self.planes.iter().any(|pl| pl.plane.intersect(ray, tmax).is_some())
-            || self
-                .bvh
-                .any_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect(ray, tmax).is_some())
+        if self.planes.iter().any(|pl| pl.plane.intersect(ray, tmax).is_some()) {
+            return true;
+        }
+        let tri = TriangleRay::new(ray);
+        self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| {
+            self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax).is_some()
+        })
     }
 
     fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Hit {

@@ -50,6 +50,52 @@ pub struct Triangle {
     pub face: u32,
 }
 
+/// Which axis of a ray's direction is the largest in magnitude: the watertight triangle test renames the axes
+/// cyclically so that it becomes z (a cyclic renaming keeps the triangle's orientation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Axes {
+    /// x dominates: (x, y, z) become (y, z, x).
+    X,
+    /// y dominates: (x, y, z) become (z, x, y).
+    Y,
+    /// z dominates: no renaming.
+    Z,
+}
+
+/// The part of the watertight ray–triangle test (Woop, Benthin and Wald 2013; pbrt-v4 §6.5.3) that depends on the
+/// ray alone, done once per ray instead of once per triangle tested: the axis renaming and the shear that takes
+/// the direction to +z.
+#[derive(Clone, Copy, Debug)]
+pub struct TriangleRay {
+    /// Ray origin.
+    pub o: Vec3A,
+    /// The renaming that makes z the dominant axis of the direction.
+    pub axes: Axes,
+    /// `−d.x / d.z` after renaming (as `−d.x · (1/d.z)`).
+    pub sx: f32,
+    /// `−d.y / d.z` after renaming.
+    pub sy: f32,
+    /// `1 / d.z` after renaming.
+    pub sz: f32,
+}
+
+impl TriangleRay {
+    /// Prepares `ray`.
+    #[inline]
+    pub fn new(ray: &Ray) -> Self {
+        let ad = ray.d.abs();
+        let (axes, d) = if ad.x > ad.y && ad.x > ad.z {
+            (Axes::X, ray.d.yzx())
+        } else if ad.y > ad.z {
+            (Axes::Y, ray.d.zxy())
+        } else {
+            (Axes::Z, ray.d)
+        };
+        let sz = 1.0 / d.z;
+        Self { o: ray.o, axes, sx: -d.x * sz, sy: -d.y * sz, sz }
+    }
+}
+
 /// Marks a triangle without mesh shading data.
 pub const NO_MESH: u32 = u32::MAX;
 
@@ -313,27 +359,28 @@ impl Triangle {
     /// are never hit.
     #[inline]
     pub fn intersect_bary(&self, ray: &Ray, tmax: f32) -> Option<(f32, f32, f32)> {
+        self.intersect_prepared(&TriangleRay::new(ray), tmax)
+    }
+
+    /// [`Triangle::intersect_bary`] with the ray's part of the work done once by [`TriangleRay::new`]: the same
+    /// operations on the same numbers, so the same result, bit for bit.
+    #[inline]
+    pub fn intersect_prepared(&self, ray: &TriangleRay, tmax: f32) -> Option<(f32, f32, f32)> {
         // Vertices relative to the ray origin, one vector per axis: lane i holds vertex i.
         let [p0, p1, p2] = self.p;
         let xs = Vec3A::new(p0.x, p1.x, p2.x) - ray.o.x;
         let ys = Vec3A::new(p0.y, p1.y, p2.y) - ray.o.y;
         let zs = Vec3A::new(p0.z, p1.z, p2.z) - ray.o.z;
-        // Rename the axes cyclically so that z is the dominant axis of `d` (`d.z` is then far from 0); a cyclic
-        // renaming keeps the triangle's orientation.
-        let ad = ray.d.abs();
-        let (x, y, z, d) = if ad.x > ad.y && ad.x > ad.z {
-            (ys, zs, xs, ray.d.yzx())
-        } else if ad.y > ad.z {
-            (zs, xs, ys, ray.d.zxy())
-        } else {
-            (xs, ys, zs, ray.d)
+        let (x, y, z) = match ray.axes {
+            Axes::X => (ys, zs, xs),
+            Axes::Y => (zs, xs, ys),
+            Axes::Z => (xs, ys, zs),
         };
-
         // Shear so the ray runs along +z: x' = x − (dx/dz)·z, y' = y − (dy/dz)·z; z is scaled by 1/dz only for
         // a hit. A vertex shared by two triangles gets the same x', y' in both.
-        let sz = 1.0 / d.z;
-        let x = x + (-d.x * sz) * z;
-        let y = y + (-d.y * sz) * z;
+        let sz = ray.sz;
+        let x = x + ray.sx * z;
+        let y = y + ray.sy * z;
 
         // Edge functions: twice the signed area of the 2D triangle of the ray (the origin) and one edge; lane i
         // is for the edge opposite vertex i, e.g. `e.x = x1·y2 − y1·x2`. Plain products, not fused: then the
@@ -485,10 +532,17 @@ impl Shape {
     /// Distance along `ray` to the closest hit in `(0, tmax)`.
     #[inline]
     pub fn intersect(&self, ray: &Ray, tmax: f32) -> Option<f32> {
+        self.intersect_prepared(ray, &TriangleRay::new(ray), tmax)
+    }
+
+    /// [`Shape::intersect`] with `tri`, which is `TriangleRay::new(ray)`, prepared once for all the shapes a ray
+    /// is tested against.
+    #[inline]
+    pub fn intersect_prepared(&self, ray: &Ray, tri: &TriangleRay, tmax: f32) -> Option<f32> {
         match self {
             Shape::Sphere(s) => s.intersect(ray, tmax),
             Shape::Rect(r) => r.intersect(ray, tmax),
-            Shape::Triangle(t) => t.intersect(ray, tmax),
+            Shape::Triangle(t) => t.intersect_prepared(tri, tmax).map(|h| h.0),
         }
     }
 
