@@ -113,16 +113,38 @@ impl Hit {
 }
 
 /// All the surfaces of a scene.
+///
+/// Its serialised form (what the scene blob carries) has no BVH: the primitives travel in leaf order and
+/// deserialising builds the tree again, which gives the same tree ([`Bvh::build`]). Shipping the tree would cost
+/// the coordinator's link 35 bytes per triangle for every worker; building it costs each worker, in parallel,
+/// about 1.3 µs per triangle on one thread (docs/RESULTS.md, "Wide BVH"), and a tree that was never on the wire
+/// cannot be a malformed one.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[serde(from = "GeometryParts")]
 pub struct Geometry {
     /// Bounded primitives, in BVH leaf order.
     pub prims: Vec<Primitive>,
     /// The BVH over `prims`.
+    #[serde(skip)]
     pub bvh: Bvh,
     /// Infinite planes.
     pub planes: Vec<PlanePrimitive>,
     /// Shading data of meshes.
     pub meshes: Vec<MeshShading>,
+}
+
+/// [`Geometry`] as it is deserialised: the same fields but the BVH.
+#[derive(Deserialize)]
+struct GeometryParts {
+    prims: Vec<Primitive>,
+    planes: Vec<PlanePrimitive>,
+    meshes: Vec<MeshShading>,
+}
+
+impl From<GeometryParts> for Geometry {
+    fn from(p: GeometryParts) -> Self {
+        Geometry::new(p.prims, p.planes, p.meshes)
+    }
 }
 
 impl Geometry {
