@@ -66,7 +66,7 @@ pub enum JobError {
 /// A job: the blobs of a prepared scene and the frame to render.
 #[derive(Clone, Debug)]
 pub struct Job {
-    /// Blob id of the scene (geometry, BVH, materials, lights).
+    /// Blob id of the scene (geometry in BVH leaf order, materials, lights; the tree is built again on decoding).
     pub scene_blob: String,
     /// Blob id of the photon maps, if the method has any.
     pub photons_blob: Option<String>,
@@ -168,8 +168,8 @@ pub struct Partial {
     pub pass_sums: Option<Vec<i128>>,
 }
 
-/// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes, BVH,
-/// materials, lights) and the photons blob are each read from the cache or built and stored. For a method with
+/// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes in BVH
+/// leaf order, materials, lights) and the photons blob are each read from the cache or built and stored. For a method with
 /// photon maps, `delivery` decides from the prepared scene whether the maps are traced here and shipped or
 /// traced by the workers ([`crate::delivery`]); the job then carries no photons blob and the workers trace.
 pub fn prepare_job(

@@ -878,6 +878,31 @@ mod tests {
         }
     }
 
+    /// A walk started inside another walk's leaf callback (which then holds the thread's stack) gets a stack of
+    /// its own and the same answers, and leaves the outer walk's stack intact.
+    #[test]
+    fn a_walk_inside_a_walk_has_its_own_stack() {
+        let mut s = crate::math::rng::Sampler::new(5, crate::math::rng::Domain::Photon, 0, 0, 0);
+        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
+        let b: Vec<Aabb> = (0..2000).map(|_| cube(10.0 * v(), 0.2 * v().x)).collect();
+        let rays: Vec<(Vec3A, Vec3A)> =
+            (0..500).map(|_| (Vec3A::from(12.0 * v() - 1.0), fmath::normalize(Vec3A::from(v() - 0.5)))).collect();
+        let (bvh, order) = Bvh::build(&b);
+        let b: Vec<Aabb> = order.iter().map(|&i| b[i as usize]).collect();
+        for &(o, d) in &rays {
+            let plain = bvh.closest_hit(o, d, f32::INFINITY, |p, t| box_hit(&b[p as usize], o, d, t));
+            let mut inner = Vec::new();
+            let nested = bvh.closest_hit(o, d, f32::INFINITY, |p, t| {
+                // Another walk, along the reversed ray, from inside this one.
+                inner.push(bvh.any_hit(o, -d, f32::INFINITY, |q, t| box_hit(&b[q as usize], o, -d, t).is_some()));
+                box_hit(&b[p as usize], o, d, t)
+            });
+            assert_eq!(nested, plain);
+            let reversed = bvh.any_hit(o, -d, f32::INFINITY, |q, t| box_hit(&b[q as usize], o, -d, t).is_some());
+            assert!(inner.iter().all(|&h| h == reversed));
+        }
+    }
+
     /// The binary tree's traversal, as it was before the collapse: the scalar slab test and a near-first walk.
     /// Returns what `leaf` returned true for, or the end of the walk.
     fn binary_walk(nodes: &[Node], o: Vec3A, d: Vec3A, tmax: &mut f32, mut leaf: impl FnMut(u32, &mut f32) -> bool) {
@@ -1035,7 +1060,7 @@ mod tests {
         let mut soup: Vec<Aabb> = (0..20_000)
             .map(|_| cube(10.0 * Vec3::new(s.next_f32(), s.next_f32(), s.next_f32()), 0.3 * s.next_f32()))
             .collect();
-        soup.extend_from_slice(&soup[..500].to_vec());
+        soup.extend_from_within(..500);
         soup.extend([Aabb::EMPTY; 5]);
         soup.push(cube(Vec3::new(-0.0, 0.0, -0.0), 0.0));
         let geometric: Vec<Aabb> = (0..200).map(|k| cube(Vec3::splat((-(k as f32)).exp2()), 0.0)).collect();
