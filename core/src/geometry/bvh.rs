@@ -52,7 +52,7 @@ pub const WIDTH: usize = 4;
 /// centroids spaced geometrically) are split at the centroid median, which halves the count at each level.
 const SAH_DEPTH: u32 = 32;
 
-/// Bound on the depth of any leaf, and of the traversal stack: [`SAH_DEPTH`] SAH levels, then at most 29 median
+/// Bound on the depth of any leaf, and of the traversal stack: 32 SAH levels (`SAH_DEPTH`), then at most 29 median
 /// levels take fewer than 2³² primitives down to [`MAX_LEAF`] = 2³.
 pub const MAX_DEPTH: usize = 64;
 
