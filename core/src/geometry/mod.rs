@@ -117,7 +117,7 @@ impl Hit {
 /// Its serialised form (what the scene blob carries) has no BVH: the primitives travel in leaf order and
 /// deserialising builds the tree again, which gives the same tree ([`Bvh::build`]). Shipping the tree would cost
 /// the coordinator's link 35 bytes per triangle for every worker; building it costs each worker, in parallel,
-/// about 1.3 µs per triangle on one thread (docs/RESULTS.md, "Wide BVH"), and a tree that was never on the wire
+/// about 1.4 µs per triangle on one thread (docs/RESULTS.md, "Wide BVH"), and a tree that was never on the wire
 /// cannot be a malformed one.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(from = "GeometryParts")]
