@@ -16,7 +16,7 @@ mod shared {
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
 use photon_core::geometry::bvh::Bvh;
-use photon_core::geometry::shapes::{Shape, Triangle, TriangleRay};
+use photon_core::geometry::shapes::{Shape, Triangle};
 use photon_core::geometry::{Geometry, NONE, Primitive};
 use photon_core::math::{Aabb, Ray};
 use rayon::prelude::*;
@@ -30,22 +30,11 @@ fn geometry(tris: &[Triangle]) -> Geometry {
     Geometry::new(prims, Vec::new(), Vec::new())
 }
 
-/// Traces every ray to its closest hit through the BVH, as `Geometry::intersect` does before it computes the hit's
-/// shading data; returns the number of hits.
+/// Traces every ray to its closest hit through the BVH (`Geometry::closest_bounded`, what `Geometry::intersect`
+/// does before it computes the hit's shading data); returns the number of hits.
 fn trace(g: &Geometry, rays: &[Ray]) -> usize {
     rays.par_chunks(256)
-        .map(|rays| {
-            rays.iter()
-                .filter(|ray| {
-                    let tri = TriangleRay::new(ray);
-                    g.bvh
-                        .closest_hit(ray.o, ray.d, f32::INFINITY, |i, tmax| {
-                            g.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax)
-                        })
-                        .is_some()
-                })
-                .count()
-        })
+        .map(|rays| rays.iter().filter(|ray| g.closest_bounded(ray, f32::INFINITY).is_some()).count())
         .sum()
 }
 

@@ -18,7 +18,7 @@ mod meshes;
 
 use glam::{Vec3, Vec3A};
 use meshes::{bumpy_icosphere, camera_rays, random_rays};
-use photon_core::geometry::shapes::{Shape, Triangle, TriangleRay};
+use photon_core::geometry::shapes::{Shape, Triangle};
 use photon_core::geometry::{Geometry, NONE, Primitive};
 use photon_core::math::{Aabb, Ray};
 use rayon::prelude::*;
@@ -111,14 +111,7 @@ fn time(dir: &Path, name: &str, threads: usize) -> Result<(), Box<dyn std::error
         let rays = read_rays(&dir.join(format!("{name}.{kind}.rays")))?;
         // The queries as `Geometry::intersect` and `Geometry::occluded` make them, without the hit's shading data
         // (normals, UVs), which Embree's queries do not compute either.
-        let closest = |r: &Ray| {
-            let tri = TriangleRay::new(r);
-            g.bvh
-                .closest_hit(r.o, r.d, f32::INFINITY, |i, tmax| {
-                    g.prims[i as usize].shape.intersect_prepared(r, &tri, tmax)
-                })
-                .is_some()
-        };
+        let closest = |r: &Ray| g.closest_bounded(r, f32::INFINITY).is_some();
         let any = |r: &Ray| g.occluded(r, f32::INFINITY);
         for (query, f) in [("closest", &closest as &(dyn Fn(&Ray) -> bool + Sync)), ("any", &any)] {
             let run =

@@ -177,15 +177,20 @@ fn brute_force_hits_lie_on_their_triangles() {
     assert!(hits > 5000, "{hits}");
 }
 
-#[test]
-fn geometry_queries_match_brute_force() {
-    let tris = soup(9, 3000);
+/// The geometry of `tris`, each primitive's `object` its index in `tris`.
+fn geometry(tris: &[Triangle]) -> Geometry {
     let prims = tris
         .iter()
         .enumerate()
         .map(|(i, &t)| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: i as u32 })
         .collect();
-    let g = Geometry::new(prims, Vec::new(), Vec::new());
+    Geometry::new(prims, Vec::new(), Vec::new())
+}
+
+#[test]
+fn geometry_queries_match_brute_force() {
+    let tris = soup(9, 3000);
+    let g = geometry(&tris);
     for ray in rays(9, 20_000, &tris) {
         let brute = brute_closest(&tris, &ray, f32::INFINITY);
         let hit = g.intersect(&ray, f32::INFINITY);
@@ -255,12 +260,7 @@ const RECORDED_ORDER: u64 = 0xa106_310d_2536_7fa5;
 #[test]
 fn a_decoded_geometry_has_the_tree_it_was_encoded_with() {
     let tris = soup(8, 100_000);
-    let prims = tris
-        .iter()
-        .enumerate()
-        .map(|(i, &t)| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: i as u32 })
-        .collect();
-    let g = Geometry::new(prims, Vec::new(), Vec::new());
+    let g = geometry(&tris);
     let blob = photon_core::codec::encode(&g).unwrap();
     // The blob is the primitives, planes and meshes, and nothing else.
     assert_eq!(blob, photon_core::codec::encode(&(&g.prims, &g.planes, &g.meshes)).unwrap());

@@ -858,15 +858,23 @@ mod tests {
         assert_eq!(count(Vec3A::new(-1.0, 0.75, 0.0), Vec3A::X), 0);
     }
 
+    /// `n` random cubes in `[0, 10]³` (sides up to 0.2), their BVH, the cubes in its leaf order, and `rays` random
+    /// rays (origins in `[−1, 11]³`, uniform directions), from `seed`.
+    #[allow(clippy::type_complexity)]
+    fn boxes_and_rays(seed: u64, n: usize, rays: usize) -> (Bvh, Vec<Aabb>, Vec<(Vec3A, Vec3A)>) {
+        let mut s = crate::math::rng::Sampler::new(seed, crate::math::rng::Domain::Photon, 0, 0, 0);
+        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
+        let b: Vec<Aabb> = (0..n).map(|_| cube(10.0 * v(), 0.2 * v().x)).collect();
+        let rays =
+            (0..rays).map(|_| (Vec3A::from(12.0 * v() - 1.0), fmath::normalize(Vec3A::from(v() - 0.5)))).collect();
+        let (bvh, order) = Bvh::build(&b);
+        let b = order.iter().map(|&i| b[i as usize]).collect();
+        (bvh, b, rays)
+    }
+
     #[test]
     fn closest_and_any_hit_agree_with_brute_force_on_boxes() {
-        let mut s = crate::math::rng::Sampler::new(3, crate::math::rng::Domain::Photon, 0, 0, 0);
-        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
-        let b: Vec<Aabb> = (0..500).map(|_| cube(10.0 * v(), 0.2 * v().x)).collect();
-        let rays: Vec<(Vec3A, Vec3A)> =
-            (0..2000).map(|_| (Vec3A::from(12.0 * v() - 1.0), fmath::normalize(Vec3A::from(v() - 0.5)))).collect();
-        let (bvh, order) = Bvh::build(&b);
-        let b: Vec<Aabb> = order.iter().map(|&i| b[i as usize]).collect();
+        let (bvh, b, rays) = boxes_and_rays(3, 500, 2000);
         for (o, d) in rays {
             let brute = b.iter().filter_map(|x| box_hit(x, o, d, f32::INFINITY)).fold(f32::INFINITY, f32::min);
             let h = bvh.closest_hit(o, d, f32::INFINITY, |p, t| box_hit(&b[p as usize], o, d, t));
@@ -882,13 +890,7 @@ mod tests {
     /// its own and the same answers, and leaves the outer walk's stack intact.
     #[test]
     fn a_walk_inside_a_walk_has_its_own_stack() {
-        let mut s = crate::math::rng::Sampler::new(5, crate::math::rng::Domain::Photon, 0, 0, 0);
-        let mut v = || Vec3::new(s.next_f32(), s.next_f32(), s.next_f32());
-        let b: Vec<Aabb> = (0..2000).map(|_| cube(10.0 * v(), 0.2 * v().x)).collect();
-        let rays: Vec<(Vec3A, Vec3A)> =
-            (0..500).map(|_| (Vec3A::from(12.0 * v() - 1.0), fmath::normalize(Vec3A::from(v() - 0.5)))).collect();
-        let (bvh, order) = Bvh::build(&b);
-        let b: Vec<Aabb> = order.iter().map(|&i| b[i as usize]).collect();
+        let (bvh, b, rays) = boxes_and_rays(5, 2000, 500);
         for &(o, d) in &rays {
             let plain = bvh.closest_hit(o, d, f32::INFINITY, |p, t| box_hit(&b[p as usize], o, d, t));
             let mut inner = Vec::new();

@@ -152,7 +152,9 @@ impl Geometry {
     pub fn new(prims: Vec<Primitive>, planes: Vec<PlanePrimitive>, meshes: Vec<MeshShading>) -> Self {
         let bounds: Vec<Aabb> = prims.iter().map(|p| p.shape.bounds()).collect();
         let (bvh, order) = Bvh::build(&bounds);
-        let prims = order.iter().map(|&i| prims[i as usize]).collect();
+        // Primitives decoded from a scene blob are in leaf order already (the build over them is the identity).
+        let in_order = order.iter().enumerate().all(|(k, &i)| i as usize == k);
+        let prims = if in_order { prims } else { order.iter().map(|&i| prims[i as usize]).collect() };
         Self { prims, bvh, planes, meshes }
     }
 
@@ -171,15 +173,20 @@ impl Geometry {
                 best = Some((PrimRef::Plane(i as u32), t));
             }
         }
-        let tri = TriangleRay::new(ray);
-        if let Some((i, t)) = self
-            .bvh
-            .closest_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax))
-        {
+        if let Some((i, t)) = self.closest_bounded(ray, tmax) {
             best = Some((PrimRef::Bounded(i), t));
         }
         let (prim, t) = best?;
         Some(self.hit_data(ray, prim, t))
+    }
+
+    /// The closest hit in `(0, tmax)` among the bounded primitives (the BVH's), without planes and without the
+    /// hit's surface data: the index into `prims` and the distance. What [`Geometry::intersect`] does before
+    /// shading, and what the ray casting benchmarks time.
+    pub fn closest_bounded(&self, ray: &Ray, tmax: f32) -> Option<(u32, f32)> {
+        let tri = TriangleRay::new(ray);
+        self.bvh
+            .closest_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax))
     }
 
     /// Whether anything blocks `ray` in `(0, tmax)`.
