@@ -131,7 +131,14 @@ impl Calibration {
         let t = Instant::now();
         let map = PhotonMap::build(traced.photons).ok()?;
         let build_s = t.elapsed().as_secs_f64() * threads;
-        let maps = PhotonMaps { global: map, caustic: None, estimator: prep.estimator(), irradiance: None };
+        let maps = PhotonMaps {
+            global: map,
+            caustic: None,
+            estimator: prep.estimator(),
+            irradiance: None,
+            volume: None,
+            volume_gather: prep.volume_gather(),
+        };
         let t = Instant::now();
         let blob = codec::encode(&maps).ok()?;
         let encode_s = t.elapsed().as_secs_f64();

@@ -45,7 +45,14 @@ fn main() {
     let (r1, _) = time(|| one.install(|| PhotonMap::build(map.photons().to_vec()).unwrap().len()));
     let (rn, _) = time(|| PhotonMap::build(map.photons().to_vec()).unwrap().len());
     println!("rebuild from sorted photons | {r1:.3} | {rn:.3}");
-    let maps = PhotonMaps { global: map, caustic: None, estimator: prep.estimator(), irradiance: None };
+    let maps = PhotonMaps {
+        global: map,
+        caustic: None,
+        estimator: prep.estimator(),
+        irradiance: None,
+        volume: None,
+        volume_gather: prep.volume_gather(),
+    };
     let (e1, _) = time(|| one.install(|| codec::encode(&maps).unwrap().len()));
     let (en, blob) = time(|| codec::encode(&maps).unwrap());
     println!("encode | {e1:.3} | {en:.3}   ({:.1} MB)", blob.len() as f64 / 1e6);

@@ -77,6 +77,7 @@ pub mod integrator;
 pub mod light;
 pub mod material;
 pub mod math;
+pub mod medium;
 pub mod metrics;
 pub mod photon;
 pub mod prepare;

@@ -7,19 +7,24 @@ use crate::Rgb;
 use crate::geometry::Hit;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::Sampler;
+use crate::medium::Medium;
 use crate::photon::{Gather, PhotonMaps, photon_radiance, with_scratch};
 use crate::prepare::Prepared;
 use glam::Vec3A;
 
 /// Indirect light at `hit` by final gathering: BSDF-sampled rays (non-delta lobes) to the next non-delta
 /// surface, through mirror and glass, where the global map gives the radiance coming back. Emission found by
-/// these rays is not counted: direct light and caustics have their own estimates.
+/// these rays is not counted: direct light and caustics have their own estimates. In a scene with media the
+/// gather rays leave into the medium on their side of `hit` (`medium` is the one on `wo`'s side) and add the
+/// global volume map's estimate along the way ([`super::photon_map::walk`]).
+#[allow(clippy::too_many_arguments)]
 pub fn indirect(
     prep: &Prepared,
     maps: &PhotonMaps,
     hit: &Hit,
     bsdf: &Bsdf,
     wo: Vec3A,
+    medium: Option<Medium>,
     s: &mut Sampler,
     rays: &mut u64,
 ) -> Rgb {
@@ -33,7 +38,15 @@ pub fn indirect(
             continue;
         }
         let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
-        let vp = visible_point(prep, settings.max_depth, hit.spawn_ray(bs.wi), s, rays);
+        let ray = hit.spawn_ray(bs.wi);
+        let vp = match &prep.media {
+            None => visible_point(prep, settings.max_depth, ray, s, rays),
+            Some(media) => {
+                let vp = super::photon_map::walk(prep, maps, ray, media.after(hit, bs.wi, medium), s, rays);
+                sum += w * vp.volume;
+                vp
+            }
+        };
         if let Some((b, h2, bsdf2, wo2)) = vp.vertex {
             sum += w * b * gathered_radiance(maps, &h2, &bsdf2, wo2);
         }

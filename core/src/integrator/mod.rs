@@ -16,12 +16,14 @@
 pub mod final_gather;
 pub mod path;
 pub mod photon_map;
+pub mod volume;
 
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::Sampler;
 use crate::math::{Ray, power_heuristic};
+use crate::medium::Medium;
 use crate::prepare::Prepared;
 use crate::scene::Integrator;
 use glam::Vec3A;
@@ -31,6 +33,9 @@ use glam::Vec3A;
 /// [`visible_point`] instead; here it gives direct light only.
 pub fn li(prep: &Prepared, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
     let settings = &prep.settings;
+    if let Some(media) = &prep.media {
+        return volume::li(prep, media, ray, s, rays);
+    }
     match settings.integrator {
         Integrator::Path => path::li(prep, settings.max_depth, ray, s, rays, false),
         Integrator::Direct | Integrator::Progressive => path::li(prep, settings.max_depth, ray, s, rays, true),
@@ -52,12 +57,16 @@ pub fn unoccluded(prep: &Prepared, hit: &Hit, wi: Vec3A, target: Vec3A) -> bool 
 
 /// Direct light at `hit` from one light chosen by power, sampled on the light. With `mis`, area-light samples
 /// are weighted by the power heuristic against BSDF sampling (the caller then adds BSDF-sampled emission with
-/// the complementary weight); without, light sampling carries the full estimate.
+/// the complementary weight); without, light sampling carries the full estimate. `medium` is the medium on
+/// the side the path arrived from; in a scene with media the shadow ray carries the transmittance of the
+/// medium it leaves into ([`crate::medium::Media::after`]).
+#[allow(clippy::too_many_arguments)]
 pub fn sample_one_light(
     prep: &Prepared,
     hit: &Hit,
     bsdf: &Bsdf,
     wo: Vec3A,
+    medium: Option<Medium>,
     s: &mut Sampler,
     rays: &mut u64,
     mis: bool,
@@ -71,10 +80,23 @@ pub fn sample_one_light(
     if f == Rgb::ZERO || !(ls.pdf > 0.0 && pmf > 0.0 && pmf * ls.pdf > 0.0) {
         return Rgb::ZERO;
     }
-    *rays += 1;
-    if !unoccluded(prep, hit, ls.wi, ls.p) {
-        return Rgb::ZERO;
-    }
+    let f = match &prep.media {
+        None => {
+            *rays += 1;
+            if !unoccluded(prep, hit, ls.wi, ls.p) {
+                return Rgb::ZERO;
+            }
+            f
+        }
+        Some(media) => {
+            let origin = hit.spawn_ray(ls.wi).o;
+            let tr = volume::shadow_transmittance(prep, media, origin, ls.p, media.after(hit, ls.wi, medium), rays);
+            if tr == Rgb::ZERO {
+                return Rgb::ZERO;
+            }
+            f * tr
+        }
+    };
     // The BSDF's shading normal: a bump or normal map bends it away from `hit.ns`.
     let cos = ls.wi.dot(bsdf.frame.n).abs();
     if ls.delta {
@@ -93,18 +115,55 @@ pub fn sample_one_light(
 pub struct VisiblePoint {
     /// Emission seen through delta lobes (already weighted).
     pub le: Rgb,
+    /// In a scene with media, the radiance the walk's volume estimate gave along the way (already weighted).
+    pub volume: Rgb,
     /// Throughput to the vertex, the vertex, its BSDF and the direction back along the path.
     pub vertex: Option<(Rgb, Hit, Bsdf, Vec3A)>,
+    /// The medium on the path's side of the vertex (`None` in vacuum and in scenes without media).
+    pub medium: Option<Medium>,
 }
+
+/// What a walk through a medium adds along one segment: given the ray, the medium (not vacuum), the distance
+/// to the surface (∞ when none), the sampler and the ray count, the radiance scattered towards the ray's
+/// origin along the segment, not yet weighted by the path's throughput.
+pub type VolumeEstimate<'a> = dyn FnMut(&Ray, &Medium, f32, &mut Sampler, &mut u64) -> Rgb + 'a;
 
 /// Follows `ray` through mirror and glass to the first surface with a non-delta component. At a surface with
 /// both (the mixture), the path continues only if the delta lobe is sampled, and that surface is the vertex.
-pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: &mut u64) -> VisiblePoint {
+/// In a scene without media.
+pub fn visible_point(prep: &Prepared, max_depth: u32, ray: Ray, s: &mut Sampler, rays: &mut u64) -> VisiblePoint {
+    visible_point_in(prep, max_depth, ray, None, s, rays, &mut |_, _, _, _, _| Rgb::ZERO)
+}
+
+/// [`visible_point`] from a ray that starts in `medium`: along every segment in a medium the walk adds
+/// `volume`'s estimate and carries on to the surface with the segment's transmittance (no free flight: every
+/// walk reaches its surface, so photon methods estimate both the volume and the surface behind it).
+pub fn visible_point_in(
+    prep: &Prepared,
+    max_depth: u32,
+    mut ray: Ray,
+    mut medium: Option<Medium>,
+    s: &mut Sampler,
+    rays: &mut u64,
+    volume: &mut VolumeEstimate,
+) -> VisiblePoint {
     let mut beta = Rgb::ONE;
     let mut le = Rgb::ZERO;
-    for _ in 0..=max_depth {
+    let mut in_volume = Rgb::ZERO;
+    // Crossings of `interface` surfaces are not bounces.
+    let (mut bounces, mut crossings) = (0u32, 0u32);
+    while bounces <= max_depth {
         *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+        let found = prep.geometry.intersect(&ray, f32::INFINITY);
+        if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
+            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+            in_volume += beta * volume(&ray, &m, t_max, s, rays);
+            beta *= m.transmittance(t_max);
+            if beta == Rgb::ZERO {
+                break;
+            }
+        }
+        let Some(hit) = found else { break };
         let wo = -ray.d;
         if hit.light != NONE
             && let Some(light) = prep.lights.lights.get(hit.light as usize)
@@ -112,9 +171,21 @@ pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Samp
             le += beta * light.le(&hit, wo);
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        if let Some(media) = &prep.media
+            && material.is_interface()
+        {
+            // Not a vertex: the walk goes on in the medium on the other side.
+            crossings += 1;
+            if crossings > crate::medium::MAX_CROSSINGS {
+                break;
+            }
+            medium = media.after(&hit, ray.d, medium);
+            ray = hit.spawn_ray(ray.d);
+            continue;
+        }
         let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.has_non_delta() {
-            return VisiblePoint { le, vertex: Some((beta, hit, bsdf, wo)) };
+            return VisiblePoint { le, volume: in_volume, vertex: Some((beta, hit, bsdf, wo)), medium };
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
@@ -125,7 +196,11 @@ pub fn visible_point(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Samp
         if !beta.is_finite() || beta == Rgb::ZERO {
             break;
         }
+        if let Some(media) = &prep.media {
+            medium = media.after(&hit, bs.wi, medium);
+        }
         ray = hit.spawn_ray(bs.wi);
+        (bounces, crossings) = (bounces + 1, 0);
     }
-    VisiblePoint { le, vertex: None }
+    VisiblePoint { le, volume: in_volume, vertex: None, medium }
 }

@@ -8,7 +8,7 @@
 
 use super::sample_one_light;
 use crate::Rgb;
-use crate::geometry::NONE;
+use crate::geometry::{Hit, NONE};
 use crate::material::bsdf::TransportMode;
 use crate::math::rng::Sampler;
 use crate::math::{Ray, power_heuristic};
@@ -33,18 +33,9 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
         *rays += 1;
         let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
         let wo = -ray.d;
-        if hit.light != NONE
-            && let Some(light) = prep.lights.lights.get(hit.light as usize)
-        {
-            let le = light.le(&hit, wo);
-            if le != Rgb::ZERO {
-                if prev_delta {
-                    l += beta * le;
-                } else {
-                    let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(&ray, &hit);
-                    l += beta * le * power_heuristic(prev_pdf, light_pdf);
-                }
-            }
+        let (le, w) = emission(prep, &hit, &ray, prev_delta, prev_pdf);
+        if le != Rgb::ZERO {
+            l += beta * le * w;
         }
         if finishing || depth == max_depth {
             break;
@@ -52,7 +43,7 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.has_non_delta() {
-            l += beta * sample_one_light(prep, &hit, &bsdf, wo, s, rays, true);
+            l += beta * sample_one_light(prep, &hit, &bsdf, wo, None, s, rays, true);
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
@@ -66,15 +57,8 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
             finishing = true;
         } else {
             eta_scale *= bs.eta * bs.eta;
-            // Roulette only a path whose throughput (η² scaling undone) has fallen below 1, surviving with that
-            // probability (pbrt-v4): a path through lossless glass keeps throughput 1 and is never ended at
-            // random, so a glass object in a white furnace is 1 in every sample, not only on average.
-            let rr_beta = beta.max_element() * eta_scale;
-            if depth + 1 >= RR_START && rr_beta < 1.0 {
-                if s.next_f32() >= rr_beta {
-                    break;
-                }
-                beta /= rr_beta;
+            if !roulette(&mut beta, eta_scale, depth, s) {
+                break;
             }
         }
         if !beta.is_finite() {
@@ -83,4 +67,35 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
         ray = hit.spawn_ray(bs.wi);
     }
     l
+}
+
+/// Emission at `hit`, reached along `ray` from a surface vertex (or the camera), and its MIS weight: 1 after a
+/// delta lobe or the camera (`prev_delta`), else the power heuristic of the BSDF sample's pdf `prev_pdf` against
+/// light sampling's.
+pub(super) fn emission(prep: &Prepared, hit: &Hit, ray: &Ray, prev_delta: bool, prev_pdf: f32) -> (Rgb, f32) {
+    if hit.light == NONE {
+        return (Rgb::ZERO, 0.0);
+    }
+    let Some(light) = prep.lights.lights.get(hit.light as usize) else { return (Rgb::ZERO, 0.0) };
+    let le = light.le(hit, -ray.d);
+    if le == Rgb::ZERO || prev_delta {
+        return (le, 1.0);
+    }
+    let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(ray, hit);
+    (le, power_heuristic(prev_pdf, light_pdf))
+}
+
+/// Russian roulette: past [`RR_START`] bounces, a path whose throughput (η² scaling undone: `eta_scale` is the
+/// product of η² over its refractions) has fallen below 1 survives with that probability and is divided by it
+/// (pbrt-v4). A path through lossless glass keeps throughput 1 and is never ended at random, so a glass object
+/// in a white furnace is 1 in every sample, not only on average. Returns whether the path survives.
+pub(super) fn roulette(beta: &mut Rgb, eta_scale: f32, depth: u32, s: &mut Sampler) -> bool {
+    let rr_beta = beta.max_element() * eta_scale;
+    if depth + 1 >= RR_START && rr_beta < 1.0 {
+        if s.next_f32() >= rr_beta {
+            return false;
+        }
+        *beta /= rr_beta;
+    }
+    true
 }

@@ -19,6 +19,9 @@
 //! type = "dielectric"
 //! eta = 1.5
 //!
+//! [materials.boundary]
+//! type = "interface"
+//!
 //! [materials.frosted]
 //! type = "mix"
 //! color = 0.9
@@ -40,6 +43,10 @@
 //! - `dielectric`: smooth glass with exact unpolarised Fresnel reflection, refraction and total internal
 //!   reflection. `eta`: index of refraction of the inside (the side the surface normal points away from) over
 //!   the outside (default 1.5, > 0); `tint` multiplies reflected and transmitted light (default 1).
+//! - `interface`: no surface at all, only the boundary of a medium (pbrt-v4's `interface` material): light
+//!   passes it unchanged in direction and power, shadow rays pass it, and it is never a path vertex. A closed
+//!   object of this material holds its `interior` medium (a cloud box) or vacuum (a region the global fog
+//!   does not fill). No fields.
 //! - `mix`: the original renderer's material, `diffuse·lambert(color) + specular·mirror + transmission·glass(eta)`.
 //!   `color` tints the diffuse part only (default 0.8); the weights `diffuse`, `specular` and `transmission`
 //!   (each ≥ 0, default 0, so a mix names the parts it has) sum to at most 1, and the rest is absorbed;
@@ -146,6 +153,8 @@ pub enum Material {
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal_map: Option<NormalMap>,
     },
+    /// No surface: the boundary of a medium, which light crosses unchanged.
+    Interface {},
 }
 
 /// The binary form of [`Material`]: the lobes' fields in declaration order, in serde's default (externally
@@ -157,6 +166,7 @@ enum LobesBinary {
     Mirror(Texture),
     Dielectric(f32, Texture),
     Mix(Texture, f32, f32, f32, f32),
+    Interface,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -177,6 +187,7 @@ impl Serialize for Material {
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 LobesBinary::Mix(color, diffuse, specular, transmission, eta)
             }
+            Material::Interface {} => LobesBinary::Interface,
         };
         MaterialBinary(lobes, bump, normal_map).serialize(s)
     }
@@ -198,6 +209,7 @@ impl<'de> Deserialize<'de> for Material {
             LobesBinary::Mix(color, diffuse, specular, transmission, eta) => {
                 Material::Mix { color, diffuse, specular, transmission, eta, bump, normal_map }
             }
+            LobesBinary::Interface => Material::Interface {},
         })
     }
 }
@@ -307,6 +319,7 @@ impl Material {
                 }
                 validate_eta(*eta)
             }
+            Material::Interface {} => Ok(()),
         }
     }
 
@@ -318,6 +331,7 @@ impl Material {
             | Material::Mirror { bump, .. }
             | Material::Dielectric { bump, .. }
             | Material::Mix { bump, .. } => bump.as_ref(),
+            Material::Interface {} => None,
         }
     }
 
@@ -329,6 +343,7 @@ impl Material {
             | Material::Mirror { normal_map, .. }
             | Material::Dielectric { normal_map, .. }
             | Material::Mix { normal_map, .. } => normal_map.as_ref(),
+            Material::Interface {} => None,
         }
     }
 
@@ -340,6 +355,7 @@ impl Material {
             Material::Mirror { reflectance, .. } => vec![("reflectance", reflectance)],
             Material::Dielectric { tint, .. } => vec![("tint", tint)],
             Material::Mix { color, .. } => vec![("color", color)],
+            Material::Interface {} => Vec::new(),
         }
     }
 
@@ -365,6 +381,7 @@ impl Material {
             }
             Material::Dielectric { tint, bump, normal_map, .. } => (vec![("tint", tint)], bump, normal_map),
             Material::Mix { color, bump, normal_map, .. } => (vec![("color", color)], bump, normal_map),
+            Material::Interface {} => return Vec::new(),
         };
         let mut out: Vec<(&'static str, &mut ImageRef)> =
             colors.into_iter().filter_map(|(n, t)| t.image_mut().map(|r| (n, r))).collect();
@@ -417,6 +434,9 @@ impl Material {
                 transmission: *transmission,
                 eta: *eta,
             },
+            // Never shaded (the integrators pass it by); as a surface it is glass of index 1, which lets light
+            // through unchanged.
+            Material::Interface {} => Bxdf::Dielectric { eta: 1.0, tint: crate::Rgb::ONE },
         };
         Bsdf::new(self.shading_normal(hit, images), hit.n, bxdf)
     }
@@ -425,10 +445,16 @@ impl Material {
     /// (light → specular → … → diffuse) exist and a caustic photon map is worth building.
     pub fn has_specular(&self) -> bool {
         match self {
-            Material::Lambert { .. } | Material::Phong { .. } => false,
+            Material::Lambert { .. } | Material::Phong { .. } | Material::Interface {} => false,
             Material::Mirror { .. } | Material::Dielectric { .. } => true,
             Material::Mix { specular, transmission, .. } => *specular > 0.0 || *transmission > 0.0,
         }
+    }
+
+    /// Whether the material is an `interface`: the boundary of a medium, no surface.
+    #[inline]
+    pub fn is_interface(&self) -> bool {
+        matches!(self, Material::Interface {})
     }
 
     /// Whether the material has a non-delta (diffuse or glossy) component: photons are stored on it and direct
@@ -436,7 +462,7 @@ impl Material {
     pub fn has_non_delta(&self) -> bool {
         match self {
             Material::Lambert { .. } | Material::Phong { .. } => true,
-            Material::Mirror { .. } | Material::Dielectric { .. } => false,
+            Material::Mirror { .. } | Material::Dielectric { .. } | Material::Interface {} => false,
             Material::Mix { diffuse, .. } => *diffuse > 0.0,
         }
     }
@@ -445,7 +471,7 @@ impl Material {
     pub fn is_transmissive(&self) -> bool {
         match self {
             Material::Lambert { .. } | Material::Phong { .. } | Material::Mirror { .. } => false,
-            Material::Dielectric { .. } => true,
+            Material::Dielectric { .. } | Material::Interface {} => true,
             Material::Mix { transmission, .. } => *transmission > 0.0,
         }
     }
@@ -487,7 +513,8 @@ mod tests {
             .map(|l| format!("{}\n", l.trim_start_matches("//!").trim_start()))
             .collect();
         let m = parse(&snippet).unwrap();
-        assert_eq!(m.len(), 5);
+        assert_eq!(m.len(), 6);
+        assert_eq!(m["boundary"], Material::Interface {});
         for mat in m.values() {
             mat.validate().unwrap();
         }

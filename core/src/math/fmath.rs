@@ -72,6 +72,12 @@ pub fn ln_1p(x: f32) -> f32 {
     libm::log1pf(x)
 }
 
+/// `x.cbrt()`.
+#[inline]
+pub fn cbrt(x: f32) -> f32 {
+    libm::cbrtf(x)
+}
+
 /// `x.powf(y)`.
 #[inline]
 pub fn powf(x: f32, y: f32) -> f32 {

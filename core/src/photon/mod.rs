@@ -10,4 +10,4 @@ mod maps;
 
 pub use kernel::{Estimator, Gather, Kernel};
 pub use map::{Photon, PhotonMap, PhotonMapError};
-pub use maps::{PhotonMaps, photon_flux, photon_radiance, precompute_irradiance, with_scratch};
+pub use maps::{PhotonMaps, photon_flux, photon_radiance, precompute_irradiance, volume_radiance, with_scratch};

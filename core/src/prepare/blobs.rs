@@ -1,5 +1,5 @@
 //! The prepared scene as blobs for the wire and the disk caches, all through [`crate::codec`]: the scene blob
-//! (geometry with its BVH, materials, lights: what stays the same from frame to frame), the photons blob, and
+//! (geometry, materials, lights, media: what stays the same from frame to frame), the photons blob, and
 //! the small frame blob (camera and render settings) that travels with every strip request.
 
 use super::Prepared;
@@ -9,6 +9,7 @@ use crate::error::FieldError;
 use crate::geometry::Geometry;
 use crate::light::LightSet;
 use crate::material::{Material, TexelImage};
+use crate::medium::Media;
 use crate::scene::RenderSettings;
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
@@ -19,6 +20,7 @@ struct SceneRef<'a> {
     geometry: &'a Geometry,
     materials: &'a [Material],
     lights: &'a LightSet,
+    media: &'a Option<Media>,
 }
 
 #[derive(Deserialize)]
@@ -26,6 +28,18 @@ struct SceneOwned {
     geometry: Geometry,
     materials: Vec<Material>,
     lights: LightSet,
+    media: Option<Media>,
+}
+
+impl SceneOwned {
+    /// Decodes a scene blob of at most `limit` bytes and checks its media's coefficients.
+    fn decode(scene: &[u8], limit: usize) -> Result<Self, FrameError> {
+        let s: SceneOwned = codec::decode(scene, limit)?;
+        if let Some(m) = &s.media {
+            m.check()?;
+        }
+        Ok(s)
+    }
 }
 
 /// The frame blob, borrowed and owned.
@@ -73,7 +87,12 @@ impl Frame {
 impl Prepared {
     /// The scene blob: geometry with its BVH, materials and lights (what stays the same from frame to frame).
     pub fn encode_scene(&self) -> Result<Vec<u8>, CodecError> {
-        codec::encode(&SceneRef { geometry: &self.geometry, materials: &self.materials, lights: &self.lights })
+        codec::encode(&SceneRef {
+            geometry: &self.geometry,
+            materials: &self.materials,
+            lights: &self.lights,
+            media: &self.media,
+        })
     }
 
     /// The photons blob, when there are photon maps.
@@ -105,10 +124,10 @@ impl Prepared {
         settings: RenderSettings,
         limit: usize,
     ) -> Result<Self, FrameError> {
-        let s: SceneOwned = codec::decode(scene, limit)?;
+        let s = SceneOwned::decode(scene, limit)?;
         check_slots(&s.materials, textures.len())?;
-        let (geometry, materials, lights) = (s.geometry, s.materials, s.lights);
-        Ok(Self { camera, geometry, materials, lights, settings, photons: None, textures })
+        let (geometry, materials, lights, media) = (s.geometry, s.materials, s.lights, s.media);
+        Ok(Self { camera, geometry, materials, lights, settings, photons: None, media, textures })
     }
 
     /// Reassembles a prepared scene from its blobs, refusing any blob longer than `limit` bytes, a frame that
@@ -121,7 +140,7 @@ impl Prepared {
         textures: &[&[u8]],
         limit: usize,
     ) -> Result<Self, FrameError> {
-        let s: SceneOwned = codec::decode(scene, limit)?;
+        let s = SceneOwned::decode(scene, limit)?;
         let f = Frame::decode(frame, limit)?;
         let photons = photons.map(|p| codec::decode(p, limit)).transpose()?;
         let textures = decode_textures(textures, limit)?;
@@ -133,6 +152,7 @@ impl Prepared {
             lights: s.lights,
             settings: f.settings,
             photons,
+            media: s.media,
             textures: Arc::new(textures),
         })
     }

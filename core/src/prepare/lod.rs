@@ -27,6 +27,8 @@ pub enum Full {
     Off,
     /// It emits light.
     Emitter,
+    /// It holds an interior medium, whose boundary must stay closed.
+    Interior,
     /// The scene has a mirror or glass material, named here.
     Specular(String),
     /// The camera is inside or very near its bounding box.
@@ -40,6 +42,7 @@ impl std::fmt::Display for Full {
         match self {
             Full::Off => f.write_str("lod = 0"),
             Full::Emitter => f.write_str("it emits light"),
+            Full::Interior => f.write_str("it holds a medium, whose boundary must stay closed"),
             Full::Specular(m) => write!(
                 f,
                 "material `{}` is specular (mirror or glass), in which the mesh may be seen magnified",
@@ -80,13 +83,16 @@ pub fn plan(scene: &Scene) -> Vec<Option<MeshLod>> {
         .objects
         .iter()
         .map(|o| {
-            let Object::Mesh { file, transform, emission, lod, .. } = o else { return None };
+            let Object::Mesh { file, transform, emission, lod, interior, .. } = o else { return None };
             let full = |why| Some(MeshLod::Full(why));
             if *lod <= 0.0 {
                 return full(Full::Off);
             }
             if emission.is_some_and(|e| e.radiance.max_element() > 0.0) {
                 return full(Full::Emitter);
+            }
+            if interior.is_some() {
+                return full(Full::Interior);
             }
             if let Some(m) = &specular {
                 return full(Full::Specular(m.clone()));

@@ -16,8 +16,11 @@ use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
 use crate::light::{Light, LightSet};
 use crate::material::{Material, TexelImage};
+use crate::medium::{Boundary, Media};
 use crate::photon::{Estimator, Gather, PhotonMaps};
-use crate::scene::{Emission, GatherMode, Integrator, LightSpec, Object, RenderSettings, Scene, SceneError};
+use crate::scene::{
+    Emission, GatherMode, Integrator, LightSpec, MediumSpec, Object, RenderSettings, Scene, SceneError,
+};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
 
@@ -36,6 +39,8 @@ pub struct Prepared {
     pub settings: RenderSettings,
     /// Photon maps, when the method needs them.
     pub photons: Option<PhotonMaps>,
+    /// The participating media, when the scene has any (`None` otherwise: no medium code runs).
+    pub media: Option<Media>,
     /// The texture images, indexed by the materials' image slots ([`textures`]). They travel as their own
     /// blobs, not with the scene.
     #[serde(skip)]
@@ -48,9 +53,10 @@ impl Prepared {
     /// ([`Prepared::with_photon_maps`]): `photons` is `None` here.
     pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
         let (materials, images) = textures::load(scene, scene_path)?;
-        let (mut geometry, emitters) = geometry(scene, scene_path)?;
+        let (mut geometry, emitters, boundaries) = geometry(scene, scene_path)?;
         check_photon_radius(scene, &geometry, scene_path)?;
         let lights = lights(scene, &mut geometry, &emitters);
+        let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
         Ok(Self {
             camera: Camera::new(&scene.camera),
             geometry,
@@ -58,6 +64,7 @@ impl Prepared {
             lights,
             settings: scene.render.clone(),
             photons: None,
+            media,
             textures: std::sync::Arc::new(images),
         })
     }
@@ -77,6 +84,22 @@ impl Prepared {
             GatherMode::Radius => Gather::Radius { radius },
         };
         Estimator { gather, kernel: ph.kernel, disc: ph.disc, same_object: ph.same_object }
+    }
+
+    /// The volume gather radius in scene units: `render.photons.volume_radius`, or twice the surface radius
+    /// ([`Prepared::photon_radius`]): photons in a volume are spread over three dimensions, not two.
+    pub fn volume_radius(&self) -> f32 {
+        self.settings.photons.volume_radius.unwrap_or_else(|| 2.0 * self.photon_radius())
+    }
+
+    /// How the volume photon map is gathered: like the surface maps (`gather`, `k`), within the volume radius.
+    pub fn volume_gather(&self) -> Gather {
+        let ph = &self.settings.photons;
+        let radius = self.volume_radius();
+        match ph.gather {
+            GatherMode::KNearest => Gather::KNearest { k: ph.k, max_radius: radius },
+            GatherMode::Radius => Gather::Radius { radius },
+        }
     }
 
     /// Loads and prepares a scene file, with the photon maps its method needs.
@@ -122,9 +145,53 @@ fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::pat
     Ok(())
 }
 
-/// The scene's surfaces under one BVH, and the emission of each light-carrying primitive by its light index
-/// (each primitive's `light` holds that index until [`lights`] renumbers it).
-fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Vec<Emission>), SceneError> {
+/// Whether the scene has a participating medium anywhere (global or inside an object), or an `interface`
+/// material (the boundary of one).
+pub fn has_media(scene: &Scene) -> bool {
+    scene.medium.is_some()
+        || scene.materials.values().any(Material::is_interface)
+        || scene
+            .objects
+            .iter()
+            .any(|o| matches!(o, Object::Sphere { interior: Some(_), .. } | Object::Mesh { interior: Some(_), .. }))
+}
+
+/// The scene's media: the global one, what each object separates, and the media of the camera and the lights.
+fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<Boundary>) -> Media {
+    let mut media = Media {
+        global: scene.medium.as_ref().map(MediumSpec::medium),
+        boundaries,
+        camera: None,
+        lights: Vec::new(),
+        interfaces: scene.materials.values().any(Material::is_interface),
+    };
+    media.camera = media.at(geometry, Vec3A::from(scene.camera.eye));
+    media.lights = lights
+        .lights
+        .iter()
+        .map(|l| match l {
+            Light::Point { p, .. } => media.at(geometry, *p),
+            // An open emitter's medium is the one around a point on it; a closed one's photons leave through
+            // its surface, which `Media::leaving` settles.
+            Light::Area { prim, .. } => match geometry.prims.get(*prim as usize) {
+                Some(pr) => media.at(geometry, pr.shape.sample_area(glam::Vec2::splat(0.5)).0),
+                None => media.global,
+            },
+        })
+        .collect();
+    media
+}
+
+/// Surfaces, emitters (as [`geometry`]) and, when the scene has media, what each object separates.
+type GeometryParts = (Geometry, Vec<Emission>, Option<Vec<Boundary>>);
+
+/// The scene's surfaces under one BVH, the emission of each light-carrying primitive by its light index
+/// (each primitive's `light` holds that index until [`lights`] renumbers it), and when the scene has media,
+/// each object's [`Boundary`]: spheres and closed meshes are closed (an `interior` on an open mesh is an
+/// error that names the field), everything else open.
+fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts, SceneError> {
+    let with_media = has_media(scene);
+    let mut boundaries: Vec<Boundary> = Vec::new();
     let names: Vec<&String> = scene.materials.keys().collect();
     let material_index = |name: &str, field: String| -> Result<u32, SceneError> {
         names.iter().position(|n| n.as_str() == name).map(|i| i as u32).ok_or_else(|| SceneError::Invalid {
@@ -153,8 +220,10 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
             };
             prims.push(Primitive { shape, material, light, object });
         };
+        let mut boundary = Boundary::Open;
         match o {
-            Object::Sphere { center, radius, emission, .. } => {
+            Object::Sphere { center, radius, emission, interior, .. } => {
+                boundary = Boundary::Closed { interior: interior.as_ref().map(MediumSpec::medium), inward: false };
                 push(Shape::Sphere(Sphere { center: *center, radius: *radius }), emission)
             }
             Object::Plane { point, normal, .. } => planes.push(PlanePrimitive {
@@ -183,7 +252,7 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                 }
                 push(Shape::Triangle(tri), emission)
             }
-            Object::Mesh { file, transform, emission, smooth, crease_angle, lod, .. } => {
+            Object::Mesh { file, transform, emission, smooth, crease_angle, lod, interior, .. } => {
                 let path = scene.base_dir.join(file);
                 let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
                 let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
@@ -208,6 +277,26 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                     });
                 }
                 let mesh = level_of_detail(mesh, lods.get(i).and_then(Option::as_ref), file, *lod);
+                if with_media {
+                    boundary = match (crate::medium::closed_mesh_orientation(&mesh.triangles), interior) {
+                        (Some(inward), interior) => {
+                            Boundary::Closed { interior: interior.as_ref().map(MediumSpec::medium), inward }
+                        }
+                        (None, None) => Boundary::Open,
+                        (None, Some(_)) => {
+                            return Err(SceneError::Invalid {
+                                path: scene_path.into(),
+                                line: None,
+                                field: format!("objects[{i}].interior"),
+                                message: format!(
+                                    "{} is not a closed mesh (some edge is not shared by exactly two faces wound \
+                                     opposite ways), so it has no inside to fill with a medium",
+                                    path.display()
+                                ),
+                            });
+                        }
+                    };
+                }
                 let mesh_index = meshes.len() as u32;
                 for (face, t) in mesh.triangles.iter().enumerate() {
                     let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };
@@ -219,8 +308,11 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<(Geometry, Ve
                 meshes.push(mesh.shading);
             }
         }
+        if with_media {
+            boundaries.push(boundary);
+        }
     }
-    Ok((Geometry::new(prims, planes, meshes), emitters))
+    Ok((Geometry::new(prims, planes, meshes), emitters, with_media.then_some(boundaries)))
 }
 
 /// The mesh as the level-of-detail plan of its object says (simplified, or whole), with a line in the log.

@@ -17,11 +17,13 @@
 
 use super::Prepared;
 use crate::Rgb;
+use crate::geometry::NONE;
 use crate::light::Light;
 use crate::material::Material;
 use crate::material::bsdf::TransportMode;
 use crate::math::rng::Sampler;
 use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
+use crate::medium::HenyeyGreenstein;
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
 use crate::scene::{Integrator, SceneError};
 use rayon::prelude::*;
@@ -47,6 +49,8 @@ pub enum PhotonKind {
 pub struct Traced {
     /// Stored photons, in path order.
     pub photons: Vec<Photon>,
+    /// Photons scattered in media (scenes with media only), in path order.
+    pub volume: Vec<Photon>,
     /// Paths emitted.
     pub paths: u64,
     /// Power emitted (W) per channel, summed over all paths.
@@ -96,10 +100,11 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
         starts.push(acc);
         acc += c;
     }
-    let chunks: Vec<(Vec<Photon>, [f64; 3])> = (0..total.div_ceil(CHUNK))
+    let chunks: Vec<(Vec<Photon>, Vec<Photon>, [f64; 3])> = (0..total.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             let mut out = Vec::new();
+            let mut volume = Vec::new();
             let mut emitted = [0.0f64; 3];
             for i in c * CHUNK..((c + 1) * CHUNK).min(total) {
                 let l = starts.partition_point(|&s| s <= i) - 1;
@@ -108,14 +113,15 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
                     *e += f64::from(v);
                 }
                 let mut s = Sampler::for_photon(prep.settings.seed, pass, i);
-                trace_path(prep, &prep.lights.lights[l], phi, &mut s, kind, &mut out);
+                trace_path(prep, l, phi, &mut s, kind, &mut out, &mut volume);
             }
-            (out, emitted)
+            (out, volume, emitted)
         })
         .collect();
     let mut traced = Traced { paths: total, ..Default::default() };
-    for (photons, e) in chunks {
+    for (photons, volume, e) in chunks {
         traced.photons.extend(photons);
+        traced.volume.extend(volume);
         for (t, v) in traced.emitted.iter_mut().zip(e) {
             *t += v;
         }
@@ -123,24 +129,96 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
     traced
 }
 
-/// Emits one photon from `light` with power `phi` and follows it, appending the photons it stores.
-pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kind: PhotonKind, out: &mut Vec<Photon>) {
+/// Emits one photon from light `light` (an index into the light set) with power `phi` and follows it, appending
+/// the surface photons it stores to `out` and, in a scene with media, the photons it scatters in a medium to
+/// `volume`.
+///
+/// In a medium the photon samples a free flight ([`crate::medium::Medium::sample_distance`]); where it scatters
+/// it stores its scattered power `w·Φ` (`w = σs·T/p`, the albedo in a grey medium) as a volume photon, then
+/// survives Russian roulette with probability `min(1, max(w))`, so its power never grows in a grey medium, and
+/// leaves along a Henyey–Greenstein direction. A photon that crosses the segment carries `T/P(pass)` (1 in a
+/// grey medium, the transmittance in one that only absorbs).
+#[allow(clippy::too_many_arguments)]
+pub fn trace_path(
+    prep: &Prepared,
+    light: usize,
+    phi: Rgb,
+    s: &mut Sampler,
+    kind: PhotonKind,
+    out: &mut Vec<Photon>,
+    volume: &mut Vec<Photon>,
+) {
+    let Some(l) = prep.lights.lights.get(light) else { return };
+    let media = prep.media.as_ref();
+    let mut medium = media.and_then(|m| m.lights.get(light).copied().flatten());
     let (u, u2) = (s.next_2d(), s.next_2d());
-    let mut ray = match *light {
+    let mut ray = match *l {
         Light::Point { p, .. } => Ray::new(p, uniform_sphere(u)),
         Light::Area { prim, two_sided, .. } => {
             let Some(pr) = prep.geometry.prims.get(prim as usize) else { return };
             let (p, p_error, n) = pr.shape.sample_area_with_error(u);
-            let n = if two_sided && s.next_f32() < 0.5 { -n } else { n };
-            let d = Frame::from_normal(n).to_world(cosine_hemisphere(u2));
-            Ray::new(offset_ray_origin_by_error(p, p_error, n, d), d)
+            let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
+            let d = Frame::from_normal(side).to_world(cosine_hemisphere(u2));
+            if let Some(media) = media {
+                medium = media.leaving(pr.object, n, d, medium);
+            }
+            Ray::new(offset_ray_origin_by_error(p, p_error, side, d), d)
         }
     };
     let mut power = phi;
     let mut specular_only = true;
-    for depth in 0..prep.settings.max_depth {
-        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { return };
+    let (mut depth, mut crossings) = (0u32, 0u32);
+    while depth < prep.settings.max_depth {
+        let found = prep.geometry.intersect(&ray, f32::INFINITY);
+        if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
+            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+            let (uc, u) = (s.next_f32(), s.next_f32());
+            let flight = m.sample_distance(t_max, uc, u);
+            if flight.scattered {
+                let w = flight.weight;
+                let keep = match kind {
+                    PhotonKind::Global => true,
+                    PhotonKind::Caustic => specular_only && depth > 0,
+                    PhotonKind::Indirect => depth > 0,
+                };
+                let x = ray.at(flight.t);
+                if keep {
+                    volume.push(Photon::new(x, -ray.d, -ray.d, power * w, NONE));
+                }
+                let q = w.max_element().min(1.0);
+                if q.is_nan() || q <= 0.0 || s.next_f32() >= q || kind == PhotonKind::Caustic {
+                    // Past a scattering in a medium no photon of this path is a caustic one.
+                    return;
+                }
+                power *= w / q;
+                if !power.is_finite() {
+                    return;
+                }
+                specular_only = false;
+                let wi = HenyeyGreenstein { g: m.g }.sample(ray.d, s.next_2d()).wi;
+                ray = Ray::new(x, wi);
+                (depth, crossings) = (depth + 1, 0);
+                continue;
+            }
+            power *= flight.weight;
+            if !power.is_finite() || power == Rgb::ZERO {
+                return;
+            }
+        }
+        let Some(hit) = found else { return };
         let Some(material) = prep.materials.get(hit.material as usize) else { return };
+        if let Some(media) = media
+            && material.is_interface()
+        {
+            // Not a bounce: the photon goes on in the medium on the other side.
+            crossings += 1;
+            if crossings > crate::medium::MAX_CROSSINGS {
+                return;
+            }
+            medium = media.after(&hit, ray.d, medium);
+            ray = hit.spawn_ray(ray.d);
+            continue;
+        }
         let bsdf = material.bsdf(&hit, &prep.textures);
         let wo = -ray.d;
         if bsdf.has_non_delta() {
@@ -177,7 +255,11 @@ pub fn trace_path(prep: &Prepared, light: &Light, phi: Rgb, s: &mut Sampler, kin
             // Past a diffuse bounce no photon of this path can be a caustic one.
             return;
         }
+        if let Some(media) = media {
+            medium = media.after(&hit, bs.wi, medium);
+        }
         ray = hit.spawn_ray(bs.wi);
+        (depth, crossings) = (depth + 1, 0);
     }
 }
 
@@ -217,7 +299,13 @@ impl Prepared {
     pub fn build_photon_maps(&self) -> Result<PhotonMaps, PhotonMapError> {
         let ph = &self.settings.photons;
         let global = trace_photons(self, u64::from(ph.global), 0, PhotonKind::Global);
-        tracing::info!(paths = global.paths, photons = global.photons.len(), "global photon map traced");
+        tracing::info!(
+            paths = global.paths,
+            photons = global.photons.len(),
+            volume = global.volume.len(),
+            "global photon map traced"
+        );
+        let volume = volume_map(global.volume)?;
         let global = PhotonMap::build(global.photons)?;
         let caustic = if self.needs_caustic_map() {
             // Pass index 1 keeps the caustic streams apart from the global ones.
@@ -234,6 +322,12 @@ impl Prepared {
         } else {
             None
         };
-        Ok(PhotonMaps { global, caustic, estimator, irradiance })
+        Ok(PhotonMaps { global, caustic, estimator, irradiance, volume, volume_gather: self.volume_gather() })
     }
+}
+
+/// The volume photon map of some photons: `None` when there are none (a scene without media, or whose media
+/// no photon reached).
+pub fn volume_map(photons: Vec<Photon>) -> Result<Option<PhotonMap>, PhotonMapError> {
+    if photons.is_empty() { Ok(None) } else { PhotonMap::build(photons).map(Some) }
 }

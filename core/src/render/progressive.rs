@@ -24,11 +24,15 @@
 
 use super::{Strip, camera_sample, pixel_rotation};
 use crate::Rgb;
-use crate::integrator::{sample_one_light, visible_point};
-use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux};
+use crate::integrator::volume::{Strategy, in_scattering, segment_point};
+use crate::integrator::{sample_one_light, visible_point, visible_point_in};
+use crate::math::Ray;
+use crate::math::rng::Sampler;
+use crate::medium::Medium;
+use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux, volume_radiance};
 use crate::prepare::Prepared;
 use crate::prepare::budget::passes_at_once;
-use crate::prepare::photons::{PhotonKind, trace_photons};
+use crate::prepare::photons::{PhotonKind, trace_photons, volume_map};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::time::Instant;
@@ -190,12 +194,12 @@ pub fn render_passes(
     while start < passes.end {
         let end = start.saturating_add(group).min(passes.end);
         let t0 = Instant::now();
-        let maps: Vec<(Option<PhotonMap>, u64)> = (start..end).into_par_iter().map(|p| pass_map(prep, p)).collect();
+        let maps: Vec<PassMaps> = (start..end).into_par_iter().map(|p| pass_map(prep, p)).collect();
         photon_seconds += t0.elapsed().as_secs_f64();
-        for (pass, (map, paths)) in (start..end).zip(maps) {
-            photon_paths += paths;
+        for (pass, maps) in (start..end).zip(maps) {
+            photon_paths += maps.paths;
             debug_assert_eq!(radius.pass, pass);
-            rays += render_pass(prep, &rows, pass, radius.r2(), map.as_ref(), &mut sums);
+            rays += render_pass(prep, &rows, pass, radius.r2(), &maps, &mut sums);
             radius = radius.next();
             done += 1;
             if !progress(done) {
@@ -207,25 +211,26 @@ pub fn render_passes(
     Some(PassSums { rows, passes, sums, rays, photon_paths, photon_seconds })
 }
 
-/// The photon map of pass `pass` and the paths traced for it. A map that cannot be built (no photon was stored)
-/// contributes nothing.
-fn pass_map(prep: &Prepared, pass: u32) -> (Option<PhotonMap>, u64) {
+/// The photon maps of one pass: surfaces, and media in a scene that has them.
+struct PassMaps {
+    surface: Option<PhotonMap>,
+    volume: Option<PhotonMap>,
+    paths: u64,
+}
+
+/// The photon maps of pass `pass` and the paths traced for it. A map that cannot be built (no photon was
+/// stored) contributes nothing.
+fn pass_map(prep: &Prepared, pass: u32) -> PassMaps {
     let n = u64::from(prep.settings.photons.pass_photons);
     let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
-    let map = PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok();
-    (map, traced.paths)
+    let surface = PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok();
+    let volume = volume_map(traced.volume).map_err(|e| tracing::warn!("pass {pass}, volume: {e}")).ok().flatten();
+    PassMaps { surface, volume, paths: traced.paths }
 }
 
 /// Adds pass `pass`'s fixed-point estimates of rows `rows`, gathered at squared radius `r2`, to `sums`; returns
 /// the rays traced.
-fn render_pass(
-    prep: &Prepared,
-    rows: &Range<u32>,
-    pass: u32,
-    r2: f32,
-    map: Option<&PhotonMap>,
-    sums: &mut [i64],
-) -> u64 {
+fn render_pass(prep: &Prepared, rows: &Range<u32>, pass: u32, r2: f32, maps: &PassMaps, sums: &mut [i64]) -> u64 {
     let ph = &prep.settings.photons;
     let est = Estimator {
         gather: Gather::Radius { radius: r2.sqrt() },
@@ -233,13 +238,18 @@ fn render_pass(
         disc: ph.disc,
         same_object: ph.same_object,
     };
+    // The volume radius shrinks so that r³ follows the sequence r² follows (the variance of a 3D estimate grows
+    // as 1/r³ where a surface's grows as 1/r²; Knaus & Zwicker 2011, §4.3, with dimension 3).
+    let r0 = prep.photon_radius();
+    let ratio = if r0 > 0.0 { r2 / (r0 * r0) } else { 1.0 };
+    let volume = maps.volume.as_ref().map(|v| (v, prep.volume_radius() * crate::math::fmath::cbrt(ratio)));
     let width = prep.camera.width as usize;
     sums.par_chunks_mut(3 * width)
         .zip(rows.clone().into_par_iter())
         .map(|(row, y)| {
             let mut rays = 0u64;
             for (x, px) in row.chunks_exact_mut(3).enumerate() {
-                let c = pixel_estimate(prep, map, &est, r2, (x as u32, y), pass, &mut rays);
+                let c = pixel_estimate(prep, maps.surface.as_ref(), volume, &est, r2, (x as u32, y), pass, &mut rays);
                 for (s, v) in px.iter_mut().zip(c.to_array()) {
                     *s = s.saturating_add(to_fixed(v));
                 }
@@ -250,11 +260,14 @@ fn render_pass(
 }
 
 /// Pass `pass`'s radiance estimate at pixel `xy`: emission and light sampling at the visible point, plus the
-/// box-kernel photon estimate `β · Σ f·Φ / (π r²)` there (Knaus & Zwicker 2011, eq. 4). Non-finite parts count
-/// as zero.
+/// box-kernel photon estimate `β · Σ f·Φ / (π r²)` there (Knaus & Zwicker 2011, eq. 4). In a scene with media,
+/// each medium segment of the camera walk adds single scattering ([`in_scattering`]) and the volume map's box
+/// estimate at radius `volume.1` at one point of the segment ([`segment_point`]). Non-finite parts count as zero.
+#[allow(clippy::too_many_arguments)]
 fn pixel_estimate(
     prep: &Prepared,
     map: Option<&PhotonMap>,
+    volume: Option<(&PhotonMap, f32)>,
     est: &Estimator,
     r2: f32,
     (x, y): (u32, u32),
@@ -264,9 +277,26 @@ fn pixel_estimate(
     let settings = &prep.settings;
     let seed = settings.seed;
     let (ray, mut s) = camera_sample(prep, seed, x, y, pass, pixel_rotation(seed, x, y));
-    let vp = visible_point(prep, settings.max_depth, ray, &mut s, rays);
-    let Some((beta, hit, bsdf, wo)) = vp.vertex else { return finite_or_zero(vp.le) };
-    let ld = vp.le + beta * sample_one_light(prep, &hit, &bsdf, wo, &mut s, rays, false);
+    let vp = match &prep.media {
+        None => visible_point(prep, settings.max_depth, ray, &mut s, rays),
+        Some(media) => {
+            let mut along = |r: &Ray, m: &Medium, t_max: f32, s: &mut Sampler, rays: &mut u64| -> Rgb {
+                let Some((t, pdf, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
+                let mass = 1.0 - m.pass_probability(t_max);
+                let density = |x: f32| m.distance_pdf(x) / mass;
+                let direct = in_scattering(prep, m, r, t_max, Some((t, pdf)), &density, Strategy::Mis, false, s, rays);
+                let indirect = match volume {
+                    Some((v, radius)) => w * volume_radiance(v, r.at(t), r.d, m.g, Gather::Radius { radius }),
+                    None => Rgb::ZERO,
+                };
+                finite_or_zero(direct) + finite_or_zero(indirect)
+            };
+            visible_point_in(prep, settings.max_depth, ray, media.camera, &mut s, rays, &mut along)
+        }
+    };
+    let Some((beta, hit, bsdf, wo)) = vp.vertex else { return finite_or_zero(vp.le) + finite_or_zero(vp.volume) };
+    let ld = vp.le + beta * sample_one_light(prep, &hit, &bsdf, wo, vp.medium, &mut s, rays, false);
+    let ld = finite_or_zero(ld) + finite_or_zero(vp.volume);
     let Some(map) = map else { return finite_or_zero(ld) };
     let (phi, m) = photon_flux(map, est, &hit, &bsdf, wo);
     let area = std::f32::consts::PI * r2;

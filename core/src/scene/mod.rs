@@ -68,6 +68,9 @@ pub struct Scene {
     /// Limits on the files the scene reads.
     #[serde(default)]
     pub limits: Limits,
+    /// The participating medium filling the space outside all closed objects (`[medium]`); default none.
+    #[serde(default)]
+    pub medium: Option<MediumSpec>,
     /// The folder that relative paths resolve against (the scene file's folder); not part of the file.
     #[serde(skip)]
     pub base_dir: PathBuf,

@@ -171,6 +171,10 @@ pub struct PhotonSettings {
     /// the scene's bounding box. Progressive photon mapping starts from it.
     #[serde(default)]
     pub radius: Option<f32>,
+    /// Gather radius in participating media (scene units); default twice `radius`. Progressive photon mapping
+    /// shrinks it pass by pass so that the volume `r³` follows the same sequence as the surfaces' `r²`.
+    #[serde(default)]
+    pub volume_radius: Option<f32>,
     /// Density-estimation kernel: `box`, `cone`, `epanechnikov` (default), `gaussian`, `linear`, `quadratic`.
     #[serde(default = "default_kernel")]
     pub kernel: crate::photon::Kernel,
@@ -203,6 +207,7 @@ impl Default for PhotonSettings {
             gather: GatherMode::KNearest,
             k: default_k(),
             radius: None,
+            volume_radius: None,
             kernel: default_kernel(),
             disc: None,
             same_object: false,
@@ -379,6 +384,9 @@ pub enum Object {
         /// Area light emission, if any.
         #[serde(default)]
         emission: Option<Emission>,
+        /// The participating medium inside the sphere; default none (vacuum inside).
+        #[serde(default)]
+        interior: Option<MediumSpec>,
     },
     /// An infinite plane through `point` facing `normal`.
     Plane {
@@ -461,6 +469,11 @@ pub enum Object {
         /// materials ([`crate::prepare::lod`]).
         #[serde(default = "default_lod")]
         lod: f32,
+        /// The participating medium inside the mesh, which must then be closed (every edge shared by exactly
+        /// two faces); default none. A closed mesh without one is vacuum inside; an open mesh separates no
+        /// media.
+        #[serde(default)]
+        interior: Option<MediumSpec>,
     },
 }
 
@@ -504,4 +517,83 @@ pub enum LightSpec {
         #[serde(default)]
         power: Option<Vec3>,
     },
+}
+
+/// A homogeneous participating medium as a scene writes it: the global `[medium]` table or an object's
+/// `interior`. Give the coefficients (`sigma_a`, `sigma_s`, each a number or `[r, g, b]` in 1/scene-unit,
+/// default 0) or `density` (σt, 1/scene-unit) with `albedo` (σs/σt, default 1), not both; `g` is the
+/// Henyey–Greenstein asymmetry in (−1, 1), default 0 (isotropic).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MediumSpec {
+    /// Absorption coefficient σa per channel (1/scene-unit).
+    #[serde(default)]
+    pub sigma_a: Option<Scale>,
+    /// Scattering coefficient σs per channel (1/scene-unit).
+    #[serde(default)]
+    pub sigma_s: Option<Scale>,
+    /// Extinction σt (1/scene-unit), with `albedo`.
+    #[serde(default)]
+    pub density: Option<f32>,
+    /// Single-scattering albedo σs/σt per channel in [0, 1], with `density`; default 1.
+    #[serde(default)]
+    pub albedo: Option<Scale>,
+    /// Henyey–Greenstein asymmetry; default 0.
+    #[serde(default)]
+    pub g: f32,
+}
+
+impl MediumSpec {
+    /// The medium's coefficients. Call after [`MediumSpec::check`].
+    pub fn medium(&self) -> crate::medium::Medium {
+        let v = |s: &Option<Scale>, d: f32| s.map_or(Vec3::splat(d), Scale::to_vec3);
+        let (sigma_a, sigma_s) = match self.density {
+            Some(density) => {
+                let albedo = v(&self.albedo, 1.0);
+                (density * (Vec3::ONE - albedo), density * albedo)
+            }
+            None => (v(&self.sigma_a, 0.0), v(&self.sigma_s, 0.0)),
+        };
+        crate::medium::Medium { sigma_a: sigma_a.into(), sigma_s: sigma_s.into(), g: self.g }
+    }
+
+    /// Checks the ranges; errors name the field relative to the table (`sigma_a`, `g`, ...).
+    pub fn check(&self) -> Result<(), crate::error::FieldError> {
+        use crate::error::FieldError;
+        let coefficients = |name: &str, s: &Option<Scale>, max: f32, range: &str| -> Result<(), FieldError> {
+            let Some(s) = s else { return Ok(()) };
+            let v = s.to_vec3();
+            if !(v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= max) {
+                return Err(FieldError::new(name, format!("expected {range} per channel, found {v}")));
+            }
+            Ok(())
+        };
+        // Beyond 1e30 per unit, σ·d overflows f32 for ordinary distances and a transmittance of exactly 0 is
+        // what the user meant anyway; the bound keeps every product finite.
+        const MAX_SIGMA: f32 = 1e30;
+        let sigma = "finite numbers ≥ 0 (1/scene-unit, at most 1e30)";
+        coefficients("sigma_a", &self.sigma_a, MAX_SIGMA, sigma)?;
+        coefficients("sigma_s", &self.sigma_s, MAX_SIGMA, sigma)?;
+        coefficients("albedo", &self.albedo, 1.0, "numbers in [0, 1]")?;
+        if let Some(d) = self.density {
+            if !(d.is_finite() && (0.0..=MAX_SIGMA).contains(&d)) {
+                return Err(FieldError::new("density", format!("expected a number in [0, {MAX_SIGMA:e}], found {d}")));
+            }
+            if self.sigma_a.is_some() || self.sigma_s.is_some() {
+                return Err(FieldError::new(
+                    "density",
+                    "give either `density` (with `albedo`) or `sigma_a`/`sigma_s`, not both",
+                ));
+            }
+        } else if self.albedo.is_some() {
+            return Err(FieldError::new(
+                "albedo",
+                "`albedo` goes with `density`; with `sigma_a`/`sigma_s` leave it out",
+            ));
+        }
+        if !(self.g.is_finite() && self.g > -1.0 && self.g < 1.0) {
+            return Err(FieldError::new("g", format!("expected a number in (−1, 1), found {}", self.g)));
+        }
+        Ok(())
+    }
 }

@@ -21,6 +21,9 @@ impl Scene {
         for (i, l) in self.lights.iter().enumerate() {
             check_light(i, l)?;
         }
+        if let Some(m) = &self.medium {
+            m.check().map_err(|e| e.within("medium"))?;
+        }
         Ok(())
     }
 
@@ -69,9 +72,12 @@ impl Scene {
             ));
         }
         let emission = match o {
-            Object::Sphere { center, radius, emission, .. } => {
+            Object::Sphere { center, radius, emission, interior, .. } => {
                 finite3(&f("center"), *center)?;
                 positive(&f("radius"), *radius)?;
+                if let Some(m) = interior {
+                    m.check().map_err(|e| e.within(&f("interior")))?;
+                }
                 emission
             }
             Object::Plane { point, normal, .. } => {
@@ -102,8 +108,11 @@ impl Scene {
                 }
                 emission
             }
-            Object::Mesh { transform, emission, crease_angle, lod, .. } => {
+            Object::Mesh { transform, emission, crease_angle, lod, interior, .. } => {
                 positive_or_zero(&f("lod"), *lod)?;
+                if let Some(m) = interior {
+                    m.check().map_err(|e| e.within(&f("interior")))?;
+                }
                 if !(0.0..=180.0).contains(crease_angle) {
                     return Err(FieldError::new(
                         f("crease_angle"),
@@ -207,6 +216,9 @@ impl RenderSettings {
         }
         if !(2..=MAX_K).contains(&ph.k) {
             return Err(FieldError::new(pf("k"), format!("expected 2 to {MAX_K} photons, found {}", ph.k)));
+        }
+        if let Some(radius) = ph.volume_radius {
+            positive(&pf("volume_radius"), radius)?;
         }
         if let Some(radius) = ph.radius {
             positive(&pf("radius"), radius)?;

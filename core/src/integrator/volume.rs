@@ -1,0 +1,441 @@
+//! Light transport in participating media: the volumetric path tracer (`path` and `direct` in a scene with
+//! media), the estimate of single scattering along a ray segment that it shares with progressive photon
+//! mapping, and the volume photon estimates of the photon methods.
+//!
+//! # The path tracer
+//! Along each segment in a medium the path samples a free flight (closed-form distance sampling,
+//! [`Medium::sample_distance`]). Single scattering from the lights along the segment is estimated by
+//! [`in_scattering`]: one light point, and two candidate distances combined by multiple importance sampling with
+//! the power heuristic, one sampled **equiangularly** towards the light point and one the free flight itself
+//! (Kulla & Fajardo 2012, §4.2). Equiangular sampling cancels the `1/r²` of a light near the ray, where distance
+//! sampling in thin fog almost never lands; distance sampling wins far from the light in thick media. A flight
+//! that scatters continues along a Henyey–Greenstein direction (its weight `p/pdf` is 1); emission that such a
+//! direction finds on an area light is a third strategy for single scattering, and the three share the power
+//! heuristic over densities on (distance, point on the light): phase sampling wins where an area light is near
+//! and large, where sampling it by area gives `1/r²` spikes. Shadow rays carry the transmittance of their medium; surfaces in between
+//! block them, as in a scene without media.
+//!
+//! # The photon methods
+//! A camera walk ([`super::visible_point_in`]) crosses each medium segment to its surface and estimates the
+//! radiance scattered towards the camera at one point of the segment, sampled from the truncated free-flight
+//! density ([`Medium::sample_segment`]): a ray march with one stochastic step, whose value is the volume photon
+//! estimate there ([`crate::photon::volume_radiance`], a 3D box kernel, Jensen & Christensen 1998, §3.3).
+//! `photon-map` and `final-gather` read the global volume map (direct light included); progressive photon
+//! mapping estimates single scattering by [`in_scattering`] at the same point and reads its pass's volume map of
+//! photons that have bounced at least once.
+
+use super::path::{emission, roulette};
+use crate::Rgb;
+use crate::geometry::NONE;
+use crate::light::Light;
+use crate::material::Material;
+use crate::material::bsdf::TransportMode;
+use crate::math::rng::Sampler;
+use crate::math::{Ray, offset_ray_origin_by_error};
+use crate::medium::{Equiangular, HenyeyGreenstein, MAX_CROSSINGS, Media, Medium};
+use crate::prepare::Prepared;
+use crate::scene::Integrator;
+use glam::Vec3A;
+
+/// Radiance along a camera ray in a scene with media, by the method of the job's settings.
+pub fn li(prep: &Prepared, media: &Media, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
+    let settings = &prep.settings;
+    match settings.integrator {
+        Integrator::Path => path_li(prep, media, settings.max_depth, ray, s, rays, false),
+        Integrator::Direct | Integrator::Progressive => path_li(prep, media, settings.max_depth, ray, s, rays, true),
+        Integrator::PhotonMap | Integrator::FinalGather => match &prep.photons {
+            Some(maps) => super::photon_map::li(prep, maps, ray, s, rays),
+            None => path_li(prep, media, settings.max_depth, ray, s, rays, true),
+        },
+    }
+}
+
+/// The transmittance from `origin`, in `medium`, to `target`: 0 when a surface is in the way, else the product
+/// of each medium's `e^(−σt·d)` over the pieces between `interface` surfaces, whose crossing changes the medium
+/// ([`Media::after`]). The last 10⁻⁵ of the distance is not tested (the target has been moved off its surface).
+/// Counts the rays it traces.
+pub fn shadow_transmittance(
+    prep: &Prepared,
+    media: &Media,
+    origin: Vec3A,
+    target: Vec3A,
+    mut medium: Option<Medium>,
+    rays: &mut u64,
+) -> Rgb {
+    let mut o = origin;
+    let mut tr = Rgb::ONE;
+    for _ in 0..=MAX_CROSSINGS {
+        let d = target - o;
+        let dist = d.length();
+        if dist.is_nan() || dist <= 0.0 {
+            return tr;
+        }
+        let ray = Ray::new(o, d / dist);
+        let reach = dist * (1.0 - 1e-5);
+        if !media.interfaces {
+            *rays += 1;
+            if prep.geometry.occluded(&ray, reach) {
+                return Rgb::ZERO;
+            }
+            return medium.map_or(tr, |m| tr * m.transmittance(dist));
+        }
+        *rays += 1;
+        let Some(hit) = prep.geometry.intersect(&ray, reach) else {
+            return medium.map_or(tr, |m| tr * m.transmittance(dist));
+        };
+        if !prep.materials.get(hit.material as usize).is_some_and(Material::is_interface) {
+            return Rgb::ZERO;
+        }
+        if let Some(m) = medium {
+            tr *= m.transmittance(hit.t);
+        }
+        medium = media.after(&hit, ray.d, medium);
+        o = hit.spawn_ray(ray.d).o;
+    }
+    Rgb::ZERO
+}
+
+/// Which candidate distances [`in_scattering`] uses: both with MIS (what the renderer does), or one alone
+/// (for the tests that compare their variance).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Strategy {
+    /// Equiangular and free-flight distances, weighted by the power heuristic.
+    Mis,
+    /// The equiangular distance only.
+    Equiangular,
+    /// The free-flight distance only.
+    Distance,
+}
+
+/// A point chosen on a light for one segment's single-scattering estimate.
+#[derive(Clone, Copy, Debug)]
+enum LightPoint {
+    /// A point light: position and intensity (W/sr).
+    Point { p: Vec3A, intensity: Rgb },
+    /// A point on an area light: position, its error bound, the surface normal, radiance, sidedness, and the
+    /// light's area (the point was chosen uniformly by area).
+    Area { p: Vec3A, p_error: Vec3A, n: Vec3A, le: Rgb, two_sided: bool, area: f32 },
+}
+
+impl LightPoint {
+    /// A light chosen by power (`u`) and a point on it (`u2`), with the light's choice probability.
+    fn sample(prep: &Prepared, u: f32, u2: glam::Vec2) -> Option<(Self, f32)> {
+        let (i, pmf) = prep.lights.choose(u)?;
+        let lp = match prep.lights.lights[i] {
+            Light::Point { p, intensity } => LightPoint::Point { p, intensity },
+            Light::Area { prim, le, two_sided, area } => {
+                let (p, p_error, n) = prep.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
+                LightPoint::Area { p, p_error, n, le, two_sided, area }
+            }
+        };
+        (pmf > 0.0).then_some((lp, pmf))
+    }
+
+    fn position(&self) -> Vec3A {
+        match *self {
+            LightPoint::Point { p, .. } | LightPoint::Area { p, .. } => p,
+        }
+    }
+
+    /// The light's area (0 for a point light).
+    fn area(&self) -> f32 {
+        match *self {
+            LightPoint::Point { .. } => 0.0,
+            LightPoint::Area { area, .. } => area,
+        }
+    }
+
+    /// The light arriving at `x` in medium `m` from this point, divided by the pdf of the point on the light:
+    /// `I/r²` for a point light, `L·|cos θl|·A/r²` for an area light; with its direction from `x`, the
+    /// transmittance and visibility of the segment, and for an area light `|cos θl|/r²` (the factor that turns
+    /// a solid-angle pdf at `x` into an area pdf on the light). Counts the shadow ray.
+    fn incident(&self, prep: &Prepared, x: Vec3A, m: &Medium, rays: &mut u64) -> Option<(Vec3A, Rgb, f32)> {
+        let (target, li, geometric) = match *self {
+            LightPoint::Point { p, intensity } => {
+                let d2 = (p - x).length_squared();
+                (p, intensity / d2, 0.0)
+            }
+            LightPoint::Area { p, p_error, n, le, two_sided, area } => {
+                let d = p - x;
+                let d2 = d.length_squared();
+                let cos_l = -d.dot(n) / d2.sqrt();
+                if !(two_sided || cos_l > 0.0) || cos_l == 0.0 {
+                    return None;
+                }
+                let towards = if cos_l > 0.0 { n } else { -n };
+                let g = cos_l.abs() / d2;
+                (offset_ray_origin_by_error(p, p_error, n, towards), le * (g * area), g)
+            }
+        };
+        let d = target - x;
+        let dist = d.length();
+        if !(dist > 0.0 && li.is_finite()) {
+            return None;
+        }
+        let wi = d / dist;
+        let tr = match &prep.media {
+            Some(media) => shadow_transmittance(prep, media, x, target, Some(*m), rays),
+            None => Rgb::ZERO,
+        };
+        (tr != Rgb::ZERO).then_some((wi, li * tr, geometric))
+    }
+}
+
+/// The three ways the path tracer finds light scattered once at distance `t` of a segment from a point `y` on
+/// an area light, as densities over (t, y): equiangular distance and `y` by area, free-flight distance and `y`
+/// by area, free-flight distance and a phase-sampled direction that hits `y`. Their power-heuristic weights
+/// ([`mis_weight`]) sum to 1 (Veach 1997, §9.2.4; the three-strategy form of Kulla & Fajardo 2012, §4.2).
+#[derive(Clone, Copy, Debug)]
+struct Densities {
+    equiangular: f32,
+    distance: f32,
+    phase: f32,
+}
+
+/// The power-heuristic weight of the strategy whose density is `own` among `d`.
+fn mis_weight(own: f32, d: Densities) -> f32 {
+    let sum = d.equiangular * d.equiangular + d.distance * d.distance + d.phase * d.phase;
+    if sum > 0.0 && sum.is_finite() { own * own / sum } else { 0.0 }
+}
+
+/// Single scattering towards the ray's origin along the segment `[0, t_max)` of `ray` in medium `m`:
+/// `∫ T(t)·σs·p(ray.d, ωl)·L_light(x(t), ωl) dt`, estimated with one light point (chosen by power, uniformly by
+/// area) and the candidate distances of `strategy`: an equiangular one towards the light point (Kulla & Fajardo
+/// 2012, eq. 9) and `flight`, a distance the caller sampled with density `flight.1` (the path tracer's free
+/// flight, when it scattered in the segment); `distance_pdf(t)` is that density at any `t`, for the MIS
+/// weights (the power heuristic, Veach 1997 §9.2.4). With `phase_hits`, the caller also counts emission that a
+/// phase-sampled direction from the free-flight point finds (the path tracer), and area-light samples share
+/// the weight with that strategy ([`emission_weight`]). The result is not weighted by the path's throughput.
+#[allow(clippy::too_many_arguments)]
+pub fn in_scattering(
+    prep: &Prepared,
+    m: &Medium,
+    ray: &Ray,
+    t_max: f32,
+    flight: Option<(f32, f32)>,
+    distance_pdf: &dyn Fn(f32) -> f32,
+    strategy: Strategy,
+    phase_hits: bool,
+    s: &mut Sampler,
+    rays: &mut u64,
+) -> Rgb {
+    let (u, u2, ue) = (s.next_f32(), s.next_2d(), s.next_f32());
+    if !m.scatters() {
+        return Rgb::ZERO;
+    }
+    let Some((light, pmf)) = LightPoint::sample(prep, u, u2) else { return Rgb::ZERO };
+    let phase = HenyeyGreenstein { g: m.g };
+    let eq = Equiangular::new(ray, t_max, light.position());
+    // Per unit of length along the ray and of area on the light (a point light: per unit of length).
+    let by_area = if light.area() > 0.0 { pmf / light.area() } else { pmf };
+    // The integrand at distance t (divided by the light point's pdf) and the three densities there.
+    let at = |t: f32, rays: &mut u64| -> Option<(Rgb, Densities)> {
+        let x = ray.at(t);
+        let (wi, li, geometric) = light.incident(prep, x, m, rays)?;
+        let p = phase.eval(ray.d, wi);
+        let d_t = distance_pdf(t);
+        let densities = Densities {
+            equiangular: eq.as_ref().map_or(0.0, |e| e.pdf(t)) * by_area,
+            distance: d_t * by_area,
+            phase: if phase_hits { d_t * p * geometric } else { 0.0 },
+        };
+        Some((m.transmittance(t) * m.sigma_s * li * p, densities))
+    };
+    let mut sum = Rgb::ZERO;
+    if strategy != Strategy::Distance
+        && let Some(eq) = &eq
+    {
+        let (t, pdf_e) = eq.sample(ue);
+        if t < t_max
+            && pdf_e > 0.0
+            && pdf_e.is_finite()
+            && let Some((f, d)) = at(t, rays)
+        {
+            let w = if strategy == Strategy::Mis { mis_weight(d.equiangular, d) } else { 1.0 };
+            sum += f * (w / pdf_e);
+        }
+    }
+    if strategy != Strategy::Equiangular
+        && let Some((t, pdf_d)) = flight
+        && t < t_max
+        && pdf_d > 0.0
+        && let Some((f, d)) = at(t, rays)
+    {
+        let w = if strategy == Strategy::Mis { mis_weight(d.distance, d) } else { 1.0 };
+        sum += f * (w / pdf_d);
+    }
+    let l = sum / pmf;
+    if l.is_finite() { l } else { Rgb::ZERO }
+}
+
+/// Where a path last scattered in a medium: the segment it scattered on, the distance and its free-flight
+/// density, and the phase pdf of the direction it left in.
+#[derive(Clone, Copy, Debug)]
+struct Scattering {
+    ray: Ray,
+    t_max: f32,
+    t: f32,
+    distance_pdf: f32,
+    phase_pdf: f32,
+}
+
+/// Emission at `hit` (at distance `hit.t` from the medium vertex `v`, along the phase-sampled `ray`), and its
+/// weight against the segment's light samples ([`in_scattering`]).
+fn emission_from_medium(prep: &Prepared, v: &Scattering, hit: &crate::geometry::Hit, ray: &Ray) -> (Rgb, f32) {
+    if hit.light == NONE {
+        return (Rgb::ZERO, 0.0);
+    }
+    let light = hit.light as usize;
+    let Some(l @ &Light::Area { area, .. }) = prep.lights.lights.get(light) else { return (Rgb::ZERO, 0.0) };
+    let le = l.le(hit, -ray.d);
+    if le == Rgb::ZERO {
+        return (le, 0.0);
+    }
+    let by_area = prep.lights.pmf(light) / area;
+    let geometric = ray.d.dot(hit.n).abs() / (hit.t * hit.t);
+    let eq = Equiangular::new(&v.ray, v.t_max, hit.p).map_or(0.0, |e| e.pdf(v.t));
+    let densities = Densities {
+        equiangular: eq * by_area,
+        distance: v.distance_pdf * by_area,
+        phase: v.distance_pdf * v.phase_pdf * geometric,
+    };
+    (le, mis_weight(densities.phase, densities))
+}
+
+/// Volumetric path tracing (`path`), or direct light with specular recursion (`direct_only`): see the module
+/// documentation. Without media it would equal [`super::path::li`]; scenes without media never come here.
+pub fn path_li(
+    prep: &Prepared,
+    media: &Media,
+    max_depth: u32,
+    mut ray: Ray,
+    s: &mut Sampler,
+    rays: &mut u64,
+    direct_only: bool,
+) -> Rgb {
+    let mut l = Rgb::ZERO;
+    let mut beta = Rgb::ONE;
+    let mut prev_delta = true;
+    let mut prev_pdf = 0.0f32;
+    // The last vertex was in a medium: emission found next shares its weight with the segment's light samples.
+    let mut prev_medium: Option<Scattering> = None;
+    let mut finishing = false;
+    let mut eta_scale = 1.0f32;
+    let mut medium = media.camera;
+    let mut depth = 0u32;
+    // `interface` surfaces crossed since the last vertex, and the distance from that vertex to the ray's origin.
+    let (mut crossings, mut travelled) = (0u32, 0.0f32);
+    while depth <= max_depth {
+        *rays += 1;
+        let found = prep.geometry.intersect(&ray, f32::INFINITY);
+        if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
+            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+            let (uc, u) = (s.next_f32(), s.next_f32());
+            let flight = m.sample_distance(t_max, uc, u);
+            if !finishing {
+                let at = flight.scattered.then_some((flight.t, flight.pdf));
+                let pdf = |t: f32| m.distance_pdf(t);
+                l += beta * in_scattering(prep, &m, &ray, t_max, at, &pdf, Strategy::Mis, true, s, rays);
+            }
+            beta *= flight.weight;
+            if !beta.is_finite() || beta == Rgb::ZERO {
+                break;
+            }
+            if flight.scattered {
+                if finishing || direct_only || depth == max_depth {
+                    break;
+                }
+                let ps = HenyeyGreenstein { g: m.g }.sample(ray.d, s.next_2d());
+                prev_delta = false;
+                prev_medium = Some(Scattering { ray, t_max, t: flight.t, distance_pdf: flight.pdf, phase_pdf: ps.pdf });
+                prev_pdf = ps.pdf;
+                if !roulette(&mut beta, eta_scale, depth, s) {
+                    break;
+                }
+                ray = Ray::new(ray.at(flight.t), ps.wi);
+                depth += 1;
+                (crossings, travelled) = (0, 0.0);
+                continue;
+            }
+        }
+        let Some(mut hit) = found else { break };
+        if prep.materials.get(hit.material as usize).is_some_and(Material::is_interface) {
+            // Not a vertex: the ray goes on in the medium on the other side.
+            crossings += 1;
+            if crossings > MAX_CROSSINGS {
+                break;
+            }
+            medium = media.after(&hit, ray.d, medium);
+            travelled += hit.t;
+            ray = hit.spawn_ray(ray.d);
+            continue;
+        }
+        // Distances from the last vertex, for the MIS densities of emission found here.
+        hit.t += travelled;
+        let wo = -ray.d;
+        let (le, w) = match &prev_medium {
+            Some(v) => emission_from_medium(prep, v, &hit, &ray),
+            None => emission(prep, &hit, &ray, prev_delta, prev_pdf),
+        };
+        if le != Rgb::ZERO {
+            l += beta * le * w;
+        }
+        if finishing || depth == max_depth {
+            break;
+        }
+        let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.has_non_delta() {
+            l += beta * super::sample_one_light(prep, &hit, &bsdf, wo, medium, s, rays, true);
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
+            break;
+        }
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
+        prev_delta = bs.delta;
+        prev_pdf = bs.pdf;
+        prev_medium = None;
+        if direct_only && !bs.delta {
+            finishing = true;
+        } else {
+            eta_scale *= bs.eta * bs.eta;
+            if !roulette(&mut beta, eta_scale, depth, s) {
+                break;
+            }
+        }
+        if !beta.is_finite() {
+            break;
+        }
+        medium = media.after(&hit, bs.wi, medium);
+        ray = hit.spawn_ray(bs.wi);
+        depth += 1;
+        (crossings, travelled) = (0, 0.0);
+    }
+    l
+}
+
+/// A distance in the segment `[0, t_max)` in `m` sampled from the truncated free-flight density, its density,
+/// and the weight `T(t)/p(t)` that turns a volume estimate there into the segment's integral; `None` when the
+/// medium does not scatter.
+pub fn segment_point(m: &Medium, t_max: f32, s: &mut Sampler) -> Option<(f32, f32, Rgb)> {
+    let (uc, u) = (s.next_f32(), s.next_f32());
+    let (t, pdf) = m.sample_segment(t_max, uc, u)?;
+    Some((t, pdf, m.transmittance(t) / pdf))
+}
+
+/// The photon methods' volume estimate along a segment from a volume photon map (`photon-map`,
+/// `final-gather`): at one point sampled by [`segment_point`], `T(t)/p(t) · Σ p(ωp, ωo)·Φp / V`.
+pub fn map_volume_estimate(
+    map: &crate::photon::PhotonMap,
+    gather: crate::photon::Gather,
+    ray: &Ray,
+    m: &Medium,
+    t_max: f32,
+    s: &mut Sampler,
+) -> Rgb {
+    let Some((t, _, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
+    let l = w * crate::photon::volume_radiance(map, ray.at(t), ray.d, m.g, gather);
+    if l.is_finite() { l } else { Rgb::ZERO }
+}
