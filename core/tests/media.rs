@@ -57,8 +57,9 @@ fn write_box(path: &Path, min: [f32; 3], max: [f32; 3]) {
 #[test]
 fn an_absorbing_slab_transmits_le_times_exp_minus_sigma_a_d() {
     let dir = scratch("slab");
-    // A slab 0.8 thick (z from −0.4 to 0.4) and wide enough to fill the view, bounded by glass of index 1
-    // (which neither reflects nor bends), in front of an emitter of radiance 2.
+    // A slab 0.8 thick (z from −0.4 to 0.4) and wide enough to fill the view, bounded by the `interface`
+    // material (no surface), in front of an emitter of radiance 2, seen through a 1° field of view (the
+    // slant path of the corner pixels is 1 + 4·10⁻⁵ times the thickness).
     write_box(&dir.join("slab.obj"), [-20.0, -20.0, -0.4], [20.0, 20.0, 0.4]);
     let (sigma_a, d, le) = (1.3f32, 0.8f32, 2.0f32);
     for method in Integrator::ALL {
@@ -67,7 +68,7 @@ fn an_absorbing_slab_transmits_le_times_exp_minus_sigma_a_d() {
 [camera]
 eye = [0.0, 0.0, 5.0]
 look_at = [0.0, 0.0, 0.0]
-fov = 10.0
+fov = 1.0
 width = 8
 height = 8
 
@@ -83,8 +84,7 @@ passes = 2
 final_gather_rays = 2
 
 [materials.clear]
-type = "dielectric"
-eta = 1.0
+type = "interface"
 
 [materials.black]
 type = "lambert"
@@ -495,4 +495,29 @@ fn bad_media_are_errors_that_name_the_field() {
     let mesh = "[[objects]]\ntype = \"mesh\"\nfile = \"open.obj\"\nmaterial = \"m\"\ninterior = { sigma_s = 1.0 }\n";
     let err = prepare_err(&format!("{HEAD}{mesh}"));
     assert!(err.contains("objects[0].interior") && err.contains("not a closed mesh"), "{err}");
+}
+
+#[test]
+fn an_interface_sphere_in_vacuum_changes_nothing() {
+    // The Cornell box, and the same box with a sphere of the `interface` material (and vacuum inside) in the
+    // middle of the room, which the camera, the light's paths and the shadow rays all cross: the same image
+    // but for the rounding of the rays' restarts at the sphere.
+    let plain = shipped("cornell.toml", 24, 24, Integrator::Path, |s| s.render.spp = 512);
+    let crossed = shipped("cornell.toml", 24, 24, Integrator::Path, |s| {
+        s.render.spp = 512;
+        s.materials.insert("boundary".into(), photon_core::material::Material::Interface {});
+        s.objects.push(photon_core::scene::Object::Sphere {
+            center: glam::Vec3::new(0.0, 1.0, 0.0),
+            radius: 0.6,
+            material: "boundary".into(),
+            emission: None,
+            interior: None,
+        });
+    });
+    assert!(crossed.media.is_some());
+    let (a, b) = (render_image(&plain, &|_| {}).pixels, render_image(&crossed, &|_| {}).pixels);
+    let (ma, mb) = (region_mean(&a, 24, (0, 0, 24, 24)), region_mean(&b, 24, (0, 0, 24, 24)));
+    let same = a.iter().zip(&b).filter(|(x, y)| x == y).count();
+    eprintln!("interface sphere: mean {ma:.5} without, {mb:.5} with; {same} of {} values identical", a.len());
+    assert!((mb / ma - 1.0).abs() < 0.005, "{ma} vs {mb}");
 }

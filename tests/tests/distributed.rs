@@ -303,3 +303,44 @@ fn a_textured_scene_renders_through_the_farm_and_a_changed_image_ships_alone() {
     assert!(first > again + 100_000, "the first render ships the scene too: {first} B");
     assert!(bits(&dir.join("again.exr")) != want, "the changed image did not change the render");
 }
+
+/// Both scenes with participating media, by every method, through two workers: the in-process bytes (each
+/// pass of progressive photon mapping traced once in the farm, its volume photons with it).
+#[test]
+fn media_scenes_render_through_the_farm_with_every_method() {
+    let dir = temp_dir("distributed", "media");
+    let (a, b) = (WorkerProcess::start(&["--threads", "1"]), WorkerProcess::start(&["--threads", "1"]));
+    let farm = workers_arg(&[&a, &b]);
+    for scene in ["fog.toml", "volume-caustic.toml"] {
+        for method in ["path", "direct", "photon-map", "final-gather", "progressive"] {
+            let job = [
+                "--size",
+                "24x20",
+                "--spp",
+                "2",
+                "--passes",
+                "3",
+                "--photons",
+                "8000",
+                "--integrator",
+                method,
+                "--rows-per-strip",
+                "4",
+                "--set",
+                "render.photons.final_gather_rays=2",
+            ];
+            let run = |out: &Path, extra: &[&str]| {
+                let mut cmd = Command::new(coordinator());
+                cmd.arg("render").arg(scenes_dir().join(scene)).arg("-o").arg(out).arg("-q").args(job).args(extra);
+                let o = run_with_timeout(&mut cmd, LIMIT);
+                assert!(o.status.success(), "{scene} {method}: {}", text(&o));
+            };
+            let (here, there) = (dir.join("here.exr"), dir.join("farm.exr"));
+            run(&here, &[]);
+            run(&there, &["--workers", &farm]);
+            let want = bits(&here);
+            assert!(want.iter().any(|&v| f32::from_bits(v) > 0.0), "{scene} {method}: black image");
+            assert!(bits(&there) == want, "{scene} {method}: the farm changed pixels");
+        }
+    }
+}

@@ -121,7 +121,7 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
     let big = dir.join("big-mesh.toml");
     std::fs::write(&big, scene).unwrap();
     let big = big.to_string_lossy().into_owned();
-    let jobs: [(&str, &[&str]); 6] = [
+    let jobs: [(&str, &[&str]); 9] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
@@ -130,6 +130,11 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
         ("textured.toml", &["--size", "32x32", "--integrator", "progressive", "--passes", "2"]),
         // `join` keeps an absolute path as it is.
         (&big, &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
+        // Media: free flights, equiangular sampling, HG directions, transmittance (exp, log1p, atan2, tan),
+        // interface crossings and volume photon maps.
+        ("fog.toml", &["--size", "32x32", "--spp", "2", "--integrator", "path"]),
+        ("fog.toml", &["--size", "32x32", "--integrator", "progressive", "--passes", "2", "--photons", "20000"]),
+        ("volume-caustic.toml", &["--size", "32x24", "--spp", "1", "--integrator", "photon-map", "--photons", "20000"]),
     ];
     for (scene, job) in jobs {
         let (a, b) = (dir.join("x86.exr"), dir.join("arm.exr"));

@@ -7,6 +7,10 @@
 //! | `final-gather` | [`final_gather`] | shadow rays + caustic map + final gathering of the global map |
 //! | `progressive` | `render::progressive` | per-pixel statistics over passes: a strip-level method, not per ray |
 //!
+//! A scene with participating media (or an `interface` material) takes [`volume`]'s paths instead: the
+//! volumetric path tracer for `path` and `direct`, and the media-aware walk ([`visible_point_in`]) for the photon
+//! methods; a scene without media never runs medium code.
+//!
 //! This module holds what they share: the dispatch ([`li`]), light sampling ([`sample_one_light`]), shadow rays
 //! ([`unoccluded`]) and the walk through mirror and glass to the first non-delta surface ([`visible_point`]).
 //! A new per-ray method is a file here, a variant of `scene::Integrator` and an arm of [`li`]; a method that

@@ -1,20 +1,23 @@
 #!/usr/bin/env bash
-# The stability suite (issue "speed against accuracy", item 4): every scene of scenes/stress/ through all five
-# methods at one modest budget, each compared with a high-sample reference of the same scene.
+# The stability suite (issue "speed against accuracy", item 4): every scene of scenes/stress/, and the two
+# scenes with participating media (scenes/fog.toml, scenes/volume-caustic.toml), through all five methods at
+# one modest budget, each compared with a high-sample reference of the same scene.
 #
-#   bash docs/figures/stress/run.sh            # from the repository root; about 5 minutes on 2 shared cores
+#   bash docs/figures/stress/run.sh            # from the repository root; about 8 minutes on 2 shared cores
+#   SCENES="scenes/fog.toml" CSV=/tmp/fog.csv bash docs/figures/stress/run.sh   # some scenes, rows elsewhere
 #
 # Writes docs/figures/stress/results.csv and one 8-bit PNG per scene and method (plus the reference's).
 # The linear EXRs live in a temporary directory and are deleted on exit: only the PNGs are kept.
 #
 # References: the path tracer at REF_SPP samples, except in the scenes whose only light is a point light
-# seen through glass (point-caustic, light-in-glass), where no camera path can reach the light through the
-# glass, and in grazing-light, whose point light 1 mm above the floor makes the first bounce so bright that a
+# seen through glass (point-caustic, light-in-glass, volume-caustic), where no camera path can reach the light
+# through the glass, and in grazing-light, whose point light 1 mm above the floor makes the first bounce so bright that a
 # 2048-spp path-traced reference is still fireflies; there the reference is `progressive` at REF_PASSES passes.
 # References use another seed than the method renders, so a progressive render is not correlated with the
 # progressive reference's first passes.
 #
-# Environment: PHOTON_BIN (default target/release/photon-coordinator, built here if absent), SIZE (96x96),
+# Environment: SCENES (the scene files, default as above), CSV (default docs/figures/stress/results.csv), PHOTON_BIN
+# (default target/release/photon-coordinator, built here if absent), SIZE (96x96),
 # THREADS (2), REF_SPP (2048), REF_PASSES (256), LIMIT (90: seconds before a render is stopped and recorded
 # as a render-error; large-radius's radius-1 gathers take minutes each).
 set -euo pipefail
@@ -29,7 +32,7 @@ ref_spp=${REF_SPP:-2048}
 ref_passes=${REF_PASSES:-256}
 limit=${LIMIT:-90}
 ref_seed=1001
-progressive_reference=" point-caustic light-in-glass grazing-light "
+progressive_reference=" point-caustic light-in-glass grazing-light volume-caustic "
 
 if [[ ! -x $bin ]]; then
     cargo build --release -p photon-coordinator
@@ -68,10 +71,12 @@ check() {
     python3 "$out/exrcheck.py" "$tmp/$1.exr" "$out/$1.png" | sed -E 's/nan=([0-9]+) inf=([0-9]+) neg=([0-9]+).*/\1,\2,\3/'
 }
 
-csv=$out/results.csv
+csv=${CSV:-$out/results.csv}
 echo "scene,method,budget,reference,prepare_s,render_s,total_s,rmse,rel_mse,rel_bias,nan,inf,neg,status" >"$csv"
 
-for scene_file in scenes/stress/*.toml; do
+# shellcheck disable=SC2206  # the list is meant to split and glob
+scene_files=(${SCENES:-scenes/stress/*.toml scenes/fog.toml scenes/volume-caustic.toml})
+for scene_file in "${scene_files[@]}"; do
     scene=$(basename "$scene_file" .toml)
     if [[ $progressive_reference == *" $scene "* ]]; then
         ref_method=progressive

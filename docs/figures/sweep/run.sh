@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
-# The sweeps of docs/RESULTS.md ("Error against time"): two references, two sweeps, each sweep's folder (sweep.csv,
-# sweep.svg, sweep.png, report.html and its images) kept as docs/figures/sweep/{cornell,caustic}/. About 6 minutes
-# on 2 idle cores. PHOTON_BIN: the folder of a release build (default: target/release, built when missing).
+# The sweeps of docs/RESULTS.md ("Error against time", "Participating media"): for each scene a reference and a
+# sweep, each sweep's folder (sweep.csv, sweep.svg, sweep.png, report.html and its images) kept as
+# docs/figures/sweep/NAME/. About 6 minutes on 2 idle cores for cornell and caustic, 12 for fog and
+# volume-caustic. PHOTON_BIN: the folder of a release build (default: target/release, built when missing).
+#
+#   bash docs/figures/sweep/run.sh                         # all four
+#   bash docs/figures/sweep/run.sh fog volume-caustic      # some of them
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 bin=${PHOTON_BIN:-target/release}
@@ -10,13 +14,32 @@ pc="$bin/photon-coordinator"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 out=docs/figures/sweep
-time "$pc" reference scenes/cornell.toml -o "$work/cornell-ref.exr" --spp 2048 --size 96x96
-time "$pc" sweep scenes/cornell.toml --reference "$work/cornell-ref.exr" \
-  --methods path,photon-map,final-gather,progressive --budget 1,2,4,8,16,32 --out "$work/cornell"
-time "$pc" reference scenes/caustic-point.toml -o "$work/caustic-ref.exr" --passes 2048 --size 96x72
-time "$pc" sweep scenes/caustic-point.toml --reference "$work/caustic-ref.exr" \
-  --methods path,photon-map,final-gather,progressive --budget 1,2,4,8,16,32 --out "$work/caustic"
-for s in cornell caustic; do
-  rm -rf "${out:?}/$s"
-  cp -r "$work/$s" "$out/$s"
+methods=path,photon-map,final-gather,progressive
+
+# sweep NAME SCENE SIZE REFERENCE-ARGS... -- SWEEP-ARGS...
+sweep() {
+  local name=$1 scene=$2 size=$3
+  shift 3
+  local ref=()
+  while [ "$1" != "--" ]; do ref+=("$1"); shift; done
+  shift
+  time "$pc" reference "$scene" -o "$work/$name-ref.exr" --size "$size" "${ref[@]}"
+  time "$pc" sweep "$scene" --reference "$work/$name-ref.exr" --budget 1,2,4,8,16,32 --out "$work/$name" "$@"
+  rm -rf "${out:?}/$name"
+  cp -r "$work/$name" "$out/$name"
+}
+
+for s in "${@:-cornell caustic fog volume-caustic}"; do
+  for name in $s; do
+    case $name in
+      cornell) sweep cornell scenes/cornell.toml 96x96 --spp 2048 -- --methods "$methods" ;;
+      caustic) sweep caustic scenes/caustic-point.toml 96x72 --passes 2048 -- --methods "$methods" ;;
+      # Fog: the path tracer's reference (no caustic: the lamp is seen through no glass); direct light only is
+      # swept too, to show what multiple scattering adds.
+      fog) sweep fog scenes/fog.toml 96x96 --spp 4096 -- --methods "path,direct,photon-map,final-gather,progressive" ;;
+      # The volume caustic: only photon methods render it, so the reference is progressive photon mapping.
+      volume-caustic) sweep volume-caustic scenes/volume-caustic.toml 96x72 --passes 1024 -- --methods "$methods" ;;
+      *) echo "unknown sweep $name" >&2; exit 2 ;;
+    esac
+  done
 done
