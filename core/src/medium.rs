@@ -4,10 +4,11 @@
 //! A medium has absorption and scattering coefficients `σa`, `σs` (1/scene-unit, per RGB channel) and an HG
 //! asymmetry `g`; its extinction is `σt = σa + σs` and its transmittance over a distance `d` is `T = e^(−σt·d)`
 //! (Beer–Lambert; pbrt-v4 §11.2). The global medium (`[medium]`) fills the space outside all closed objects;
-//! a closed object (a sphere, a closed mesh) holds its `interior` medium, or vacuum; open surfaces (planes,
-//! rectangles, triangles, open meshes) separate nothing, and a ray crossing one stays in its medium
-//! ([`Media::after`]). The camera and each point light are in the medium of the closed object that contains
-//! them, or in the global one ([`Media::at`]); closed objects with media must not overlap.
+//! a closed object (a sphere, a closed mesh) holds its `interior` medium, or vacuum, and its outside is the
+//! inside of the closed object around it, or the global medium (objects nest; they must not overlap partly);
+//! open surfaces (planes, rectangles, triangles, open meshes) separate nothing, and a ray crossing one stays in
+//! its medium ([`Media::after`]). The camera and each point light are in the medium of the innermost closed
+//! object that contains them, or in the global one ([`Media::at`]).
 //!
 //! Directions follow light's flow: the phase function is evaluated at `cos θ = d_in · d_out`, the cosine
 //! between the direction light travelled before the scattering and after it, so `g > 0` scatters forwards.
@@ -25,6 +26,10 @@ use serde::{Deserialize, Serialize};
 /// The most `interface` surfaces a ray may cross between two vertices (a guard against a ray caught between
 /// coincident boundaries; a real scene crosses a few).
 pub const MAX_CROSSINGS: u32 = 64;
+
+/// The largest coefficient (σa, σs, density) a medium may have, in 1/scene-unit: beyond it σt·d overflows f32
+/// for ordinary distances, and a transmittance of exactly 0 is what such a medium gives anyway.
+pub const MAX_SIGMA: f32 = 1e30;
 
 /// A homogeneous medium.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -117,25 +122,45 @@ impl Medium {
         FreeFlight { t: t_max, scattered: false, weight, pdf: 0.0 }
     }
 
-    /// Samples a distance in `[0, t_max)` from the truncated density `p(t) / (1 − P(t ≥ t_max))` (one channel
-    /// chosen by `u_channel`, its exponential inverted on the interval): the point where a photon method
-    /// estimates in-scattered radiance along a segment. Returns `(t, density)`, or `None` when the medium does
-    /// not scatter or the interval is empty.
+    /// The probability that a free flight ([`Medium::sample_distance`]) ends before `t_max`:
+    /// `(1/3)·Σ_c (1 − e^(−σt_c·t_max))`, each term without the cancellation of a thin segment.
+    pub fn segment_mass(&self, t_max: f32) -> f32 {
+        self.channel_masses(t_max).iter().sum::<f32>() / 3.0
+    }
+
+    /// Per channel, `1 − e^(−σt_c·t_max)` (0 where σt_c = 0).
+    fn channel_masses(&self, t_max: f32) -> [f32; 3] {
+        self.sigma_t().to_array().map(|s| if s > 0.0 { -expm1(-s * t_max) } else { 0.0 })
+    }
+
+    /// Samples a distance in `[0, t_max)` from the free-flight density restricted to the segment,
+    /// `p(t) / m` with `m` = [`Medium::segment_mass`]: a channel chosen with probability proportional to its
+    /// mass on the segment (by `u_channel`), then its exponential inverted on the interval (by `u`). The point
+    /// where a photon method estimates in-scattered radiance along a segment. Returns `(t, density)`, or `None`
+    /// when the medium does not scatter or the segment holds no mass.
     pub fn sample_segment(&self, t_max: f32, u_channel: f32, u: f32) -> Option<(f32, f32)> {
         if !self.scatters() || t_max.is_nan() || t_max <= 0.0 {
             return None;
         }
-        let st = self.sigma_t();
-        let c = ((u_channel * 3.0) as usize).min(2);
-        let sc = st[c];
-        let mass = 1.0 - self.pass_probability(t_max);
-        if sc <= 0.0 || mass <= 0.0 {
+        let masses = self.channel_masses(t_max);
+        let total: f32 = masses.iter().sum();
+        if !(total > 0.0 && total.is_finite()) {
             return None;
         }
-        // The channel's mass on [0, t_max): 1 − e^(−σ·t_max), then the inverse of its CDF.
-        let channel_mass = -expm1(-sc * t_max);
-        let t = (-fmath::ln_1p(-u * channel_mass) / sc).min(t_max.next_down_f32());
-        let pdf = self.distance_pdf(t) / mass;
+        // The channel whose share of the total mass holds `u_channel` (never one without mass).
+        let x = u_channel * total;
+        let (mut c, mut acc) = (0, 0.0);
+        for (i, &m) in masses.iter().enumerate() {
+            if m > 0.0 {
+                (c, acc) = (i, acc + m);
+                if x < acc {
+                    break;
+                }
+            }
+        }
+        let sc = self.sigma_t()[c];
+        let t = (-fmath::ln_1p(-u * masses[c]) / sc).min(t_max.next_down_f32());
+        let pdf = self.distance_pdf(t) / (total / 3.0);
         (pdf > 0.0 && pdf.is_finite() && t.is_finite()).then_some((t, pdf))
     }
 }
@@ -271,11 +296,14 @@ impl Equiangular {
 pub enum Boundary {
     /// An open surface, or an object that separates nothing: a ray crossing it keeps its medium.
     Open,
-    /// A closed surface: inside is `interior` (vacuum when `None`), outside the global medium.
-    /// `inward` is set when the surface's geometric normals point inwards (a mesh wound clockwise).
+    /// A closed surface: inside is `interior` (vacuum when `None`), outside `exterior` (the medium of the
+    /// closed object around it, or the global one). `inward` is set when the surface's geometric normals point
+    /// inwards (a mesh wound clockwise).
     Closed {
         /// The medium inside.
         interior: Option<Medium>,
+        /// The medium outside.
+        exterior: Option<Medium>,
         /// The geometric normals point inwards.
         inward: bool,
     },
@@ -303,8 +331,11 @@ impl Medium {
     /// ≥ 0, `g` in (−1, 1).
     pub fn check(&self) -> Result<(), crate::error::FieldError> {
         for (name, v) in [("sigma_a", self.sigma_a), ("sigma_s", self.sigma_s)] {
-            if !(v.is_finite() && v.min_element() >= 0.0) {
-                return Err(crate::error::FieldError::new(name, format!("expected finite numbers ≥ 0, found {v}")));
+            if !(v.is_finite() && v.min_element() >= 0.0 && v.max_element() <= MAX_SIGMA) {
+                return Err(crate::error::FieldError::new(
+                    name,
+                    format!("expected finite numbers ≥ 0 (at most {MAX_SIGMA:e}), found {v}"),
+                ));
             }
         }
         if !(self.g > -1.0 && self.g < 1.0) {
@@ -320,9 +351,12 @@ impl Media {
         let all = [("media.global".to_string(), self.global), ("media.camera".to_string(), self.camera)]
             .into_iter()
             .chain(self.lights.iter().enumerate().map(|(i, m)| (format!("media.lights[{i}]"), *m)))
-            .chain(self.boundaries.iter().enumerate().map(|(i, b)| match b {
-                Boundary::Closed { interior, .. } => (format!("media.boundaries[{i}]"), *interior),
-                Boundary::Open => (String::new(), None),
+            .chain(self.boundaries.iter().enumerate().flat_map(|(i, b)| match b {
+                Boundary::Closed { interior, exterior, .. } => vec![
+                    (format!("media.boundaries[{i}].interior"), *interior),
+                    (format!("media.boundaries[{i}].exterior"), *exterior),
+                ],
+                Boundary::Open => Vec::new(),
             }));
         for (name, m) in all {
             if let Some(m) = m {
@@ -343,37 +377,43 @@ impl Media {
     #[inline]
     pub fn leaving(&self, object: u32, n: Vec3A, wi: Vec3A, current: Option<Medium>) -> Option<Medium> {
         match self.boundaries.get(object as usize) {
-            Some(Boundary::Closed { interior, inward }) => {
+            Some(Boundary::Closed { interior, exterior, inward }) => {
                 if (wi.dot(n) < 0.0) != *inward {
                     *interior
                 } else {
-                    self.global
+                    *exterior
                 }
             }
             _ => current,
         }
     }
 
-    /// The medium at point `p`: the interior of the first closed object (in scene order) that contains it, else
-    /// the global medium. Containment is the parity of crossings along a fixed ray through each closed object's
-    /// primitives: `O(primitives)`, for the camera and the lights, once per scene.
-    pub fn at(&self, geometry: &Geometry, p: Vec3A) -> Option<Medium> {
+    /// The medium at point `p`: the interior of the innermost closed object that contains it (of those that
+    /// contain it, the one with the smallest bounding box: objects may nest but not overlap), else the global
+    /// medium. Containment is the parity of crossings along a fixed ray through each closed object's
+    /// primitives, all counted in one pass over the primitives; object `skip` is left out (an object's own
+    /// exterior is the medium around it). For the camera, the lights and each closed object, once per scene.
+    pub fn at(&self, geometry: &Geometry, p: Vec3A, skip: Option<u32>) -> Option<Medium> {
         // A direction unlikely to graze an edge of an axis-aligned model.
         let d = fmath::normalize(Vec3A::new(0.5773, 0.5802, 0.5745));
         let ray = Ray::new(p, d);
-        for (object, b) in self.boundaries.iter().enumerate() {
-            let Boundary::Closed { interior, .. } = b else { continue };
-            let crossings = geometry
-                .prims
-                .iter()
-                .filter(|pr| pr.object == object as u32)
-                .map(|pr| crossings(&pr.shape, &ray))
-                .sum::<u32>();
-            if crossings % 2 == 1 {
-                return *interior;
+        let n = self.boundaries.len();
+        let (mut count, mut bounds) = (vec![0u32; n], vec![crate::math::Aabb::EMPTY; n]);
+        for pr in &geometry.prims {
+            let o = pr.object as usize;
+            if Some(pr.object) == skip || !matches!(self.boundaries.get(o), Some(Boundary::Closed { .. })) {
+                continue;
             }
+            count[o] += crossings(&pr.shape, &ray);
+            bounds[o] = bounds[o].union(pr.shape.bounds());
         }
-        self.global
+        let size = |b: &crate::math::Aabb| (b.max - b.min).length();
+        let inner =
+            (0..n).filter(|&o| count[o] % 2 == 1).min_by(|&a, &b| size(&bounds[a]).total_cmp(&size(&bounds[b])));
+        match inner.and_then(|o| self.boundaries.get(o)) {
+            Some(Boundary::Closed { interior, .. }) => *interior,
+            _ => self.global,
+        }
     }
 }
 

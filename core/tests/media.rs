@@ -10,6 +10,7 @@ mod common;
 
 use common::{Mean, chi2_test, sampler};
 use glam::Vec3A;
+use photon_core::Rgb;
 use photon_core::integrator::volume::{Strategy, in_scattering};
 use photon_core::math::Ray;
 use photon_core::medium::{HenyeyGreenstein, Medium};
@@ -54,17 +55,21 @@ fn write_box(path: &Path, min: [f32; 3], max: [f32; 3]) {
     std::fs::write(path, s).unwrap();
 }
 
-#[test]
-fn an_absorbing_slab_transmits_le_times_exp_minus_sigma_a_d() {
-    let dir = scratch("slab");
-    // A slab 0.8 thick (z from −0.4 to 0.4) and wide enough to fill the view, bounded by the `interface`
-    // material (no surface), in front of an emitter of radiance 2, seen through a 1° field of view (the
-    // slant path of the corner pixels is 1 + 4·10⁻⁵ times the thickness).
-    write_box(&dir.join("slab.obj"), [-20.0, -20.0, -0.4], [20.0, 20.0, 0.4]);
-    let (sigma_a, d, le) = (1.3f32, 0.8f32, 2.0f32);
-    for method in Integrator::ALL {
-        let text = format!(
-            r#"
+/// The mean radiance by every method of a camera (1° field of view) looking along −z through a box of the
+/// `interface` material spanning z ∈ [−h, h] (and far beyond the view in x and y) whose inside absorbs with
+/// coefficient `sigma_a`, at an emitter of radiance 2; with `hole`, an `interface` sphere of that radius at the
+/// centre of the box, vacuum inside, which the view's rays cross.
+fn slab(h: f32, sigma_a: f32, hole: Option<f32>) -> Vec<(Integrator, f64)> {
+    let dir = scratch(&format!("slab-{h}-{}", hole.unwrap_or(0.0)));
+    write_box(&dir.join("slab.obj"), [-20.0, -20.0, -h], [20.0, 20.0, h]);
+    let sphere = hole.map_or(String::new(), |r| {
+        format!("[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = {r}\nmaterial = \"clear\"\n")
+    });
+    Integrator::ALL
+        .into_iter()
+        .map(|method| {
+            let text = format!(
+                r#"
 [camera]
 eye = [0.0, 0.0, 5.0]
 look_at = [0.0, 0.0, 0.0]
@@ -96,6 +101,7 @@ file = "slab.obj"
 material = "clear"
 interior = {{ sigma_a = {sigma_a} }}
 
+{sphere}
 [[objects]]
 type = "rect"
 center = [0.0, 0.0, -3.0]
@@ -103,16 +109,53 @@ normal = [0.0, 0.0, 1.0]
 width = 60.0
 height = 60.0
 material = "black"
-emission = {{ radiance = [{le}, {le}, {le}] }}
+emission = {{ radiance = [2.0, 2.0, 2.0] }}
 "#
-        );
-        let prep = prepare(&text, &dir);
-        let expected = f64::from(le) * (-f64::from(sigma_a) * f64::from(d)).exp();
-        let mean = mean_of(&prep);
-        let rel = (mean - expected).abs() / expected;
+            );
+            (method, mean_of(&prepare(&text, &dir)))
+        })
+        .collect()
+}
+
+#[test]
+fn an_absorbing_slab_transmits_le_times_exp_minus_sigma_a_d() {
+    // A slab 0.8 thick bounded by the `interface` material (no surface): every method sees 2·e^(−σa·d). The
+    // slant path of the 1° view's corner pixels is 1 + 4·10⁻⁵ times the thickness.
+    let (sigma_a, le) = (1.3f64, 2.0f64);
+    let expected = le * (-sigma_a * 0.8).exp();
+    for (method, mean) in slab(0.4, 1.3, None) {
         eprintln!("slab, {method}: {mean:.6} (expected {expected:.6})");
-        assert!(rel < 0.005, "{method}: {mean} vs {expected} ({:.3} %)", rel * 100.0);
+        assert!((mean - expected).abs() / expected < 0.005, "{method}: {mean} vs {expected}");
     }
+    // A vacuum sphere of radius 0.8 nested in a slab 2 thick: the rays cross 0.4 of the medium, then the
+    // sphere, then 0.4 again, the medium outside the sphere being the slab's inside. (The chord of the view's
+    // corner rays is 0.15 % shorter than the diameter.)
+    let expected = le * (-sigma_a * (2.0 - 1.6)).exp();
+    for (method, mean) in slab(1.0, 1.3, Some(0.8)) {
+        eprintln!("slab with a vacuum sphere, {method}: {mean:.6} (expected {expected:.6})");
+        assert!((mean - expected).abs() / expected < 0.005, "{method}: {mean} vs {expected}");
+    }
+}
+
+#[test]
+fn segment_points_follow_their_density_in_a_coloured_medium() {
+    // σt = (1, 0.1, 0) on a segment of length 1.5: the channel without extinction is never chosen, and
+    // E[g(t)/p(t)] = ∫₀^1.5 g(t) dt for g(t) = t (1.125) and g = 1 (1.5).
+    let m = Medium { sigma_a: Rgb::new(0.5, 0.0, 0.0), sigma_s: Rgb::new(0.5, 0.1, 0.0), g: 0.0 };
+    let t_max = 1.5f32;
+    let mut s = sampler(17, 0);
+    let (mut lin, mut one) = (Mean::default(), Mean::default());
+    for _ in 0..400_000 {
+        let (t, pdf) = m.sample_segment(t_max, s.next_f32(), s.next_f32()).unwrap();
+        assert!((0.0..t_max).contains(&t), "{t}");
+        lin.add(Rgb::splat(t / pdf));
+        one.add(Rgb::splat(1.0 / pdf));
+    }
+    let (a, b) = (lin.mean()[0], one.mean()[0]);
+    eprintln!("∫t = {a:.5} (1.125), ∫1 = {b:.5} (1.5)");
+    assert!((a - 1.125).abs() < 4.0 * lin.std_error()[0] + 1e-4, "{a}");
+    assert!((b - 1.5).abs() < 4.0 * one.std_error()[0] + 1e-4, "{b}");
+    assert!((f64::from(m.segment_mass(t_max)) - (2.0 - (-1.5f64).exp() - (-0.15f64).exp()) / 3.0).abs() < 1e-6);
 }
 
 #[test]
@@ -491,6 +534,11 @@ fn bad_media_are_errors_that_name_the_field() {
     let sphere = "[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\n";
     let err = prepare_err(&format!("{HEAD}{sphere}interior = {{ sigma_s = -1.0 }}\n"));
     assert!(err.contains("objects[0].interior.sigma_s"), "{err}");
+    // An interface has no surface to emit from.
+    let glow = "[materials.b]\ntype = \"interface\"\n[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\n\
+                radius = 1.0\nmaterial = \"b\"\nemission = { radiance = [1.0, 1.0, 1.0] }\n";
+    let err = prepare_err(&format!("{HEAD}{glow}"));
+    assert!(err.contains("objects[0].emission") && err.contains("interface"), "{err}");
     // An interior needs an inside: an open mesh has none.
     let mesh = "[[objects]]\ntype = \"mesh\"\nfile = \"open.obj\"\nmaterial = \"m\"\ninterior = { sigma_s = 1.0 }\n";
     let err = prepare_err(&format!("{HEAD}{mesh}"));

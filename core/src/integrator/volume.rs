@@ -192,10 +192,15 @@ struct Densities {
     phase: f32,
 }
 
-/// The power-heuristic weight of the strategy whose density is `own` among `d`.
+/// The power-heuristic weight of the strategy whose density is `own` among `d`, computed on the densities
+/// divided by the largest, so that squares of large densities (a tiny light, g near ±1) do not overflow.
 fn mis_weight(own: f32, d: Densities) -> f32 {
-    let sum = d.equiangular * d.equiangular + d.distance * d.distance + d.phase * d.phase;
-    if sum > 0.0 && sum.is_finite() { own * own / sum } else { 0.0 }
+    let max = d.equiangular.max(d.distance).max(d.phase);
+    if !(max > 0.0 && max.is_finite()) {
+        return 0.0;
+    }
+    let (o, e, f, p) = (own / max, d.equiangular / max, d.distance / max, d.phase / max);
+    o * o / (e * e + f * f + p * p)
 }
 
 /// Single scattering towards the ray's origin along the segment `[0, t_max)` of `ray` in medium `m`:
@@ -332,10 +337,13 @@ pub fn path_li(
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
             let (uc, u) = (s.next_f32(), s.next_f32());
             let flight = m.sample_distance(t_max, uc, u);
-            if !finishing {
+            // Light scattered once at a point of this segment: like light sampling at a surface, only below the
+            // last bounce; the phase-sampled strategy exists only where the path goes on from a scattering.
+            if !finishing && depth < max_depth {
                 let at = flight.scattered.then_some((flight.t, flight.pdf));
                 let pdf = |t: f32| m.distance_pdf(t);
-                l += beta * in_scattering(prep, &m, &ray, t_max, at, &pdf, Strategy::Mis, true, s, rays);
+                let phase_hits = !direct_only;
+                l += beta * in_scattering(prep, &m, &ray, t_max, at, &pdf, Strategy::Mis, phase_hits, s, rays);
             }
             beta *= flight.weight;
             if !beta.is_finite() || beta == Rgb::ZERO {

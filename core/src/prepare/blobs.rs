@@ -34,9 +34,20 @@ struct SceneOwned {
 impl SceneOwned {
     /// Decodes a scene blob of at most `limit` bytes and checks its media's coefficients.
     fn decode(scene: &[u8], limit: usize) -> Result<Self, FrameError> {
-        let s: SceneOwned = codec::decode(scene, limit)?;
-        if let Some(m) = &s.media {
-            m.check()?;
+        let mut s: SceneOwned = codec::decode(scene, limit)?;
+        // Whether shadow rays look past `interface` surfaces follows from the materials, not from the blob.
+        let interfaces = s.materials.iter().any(Material::is_interface);
+        match &mut s.media {
+            Some(m) => {
+                m.check()?;
+                m.interfaces = interfaces;
+            }
+            None if interfaces => {
+                return Err(
+                    FieldError::new("media", "the materials include an interface but the scene has no media").into()
+                );
+            }
+            None => {}
         }
         Ok(s)
     }

@@ -16,7 +16,7 @@ use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
 use crate::light::{Light, LightSet};
 use crate::material::{Material, TexelImage};
-use crate::medium::{Boundary, Media};
+use crate::medium::{Boundary, Media, Medium};
 use crate::photon::{Estimator, Gather, PhotonMaps};
 use crate::scene::{
     Emission, GatherMode, Integrator, LightSpec, MediumSpec, Object, RenderSettings, Scene, SceneError,
@@ -156,7 +156,8 @@ pub fn has_media(scene: &Scene) -> bool {
             .any(|o| matches!(o, Object::Sphere { interior: Some(_), .. } | Object::Mesh { interior: Some(_), .. }))
 }
 
-/// The scene's media: the global one, what each object separates, and the media of the camera and the lights.
+/// The scene's media: the global one, what each object separates (with the medium outside each closed object:
+/// the interior of the closed object around it, or the global one), and the media of the camera and the lights.
 fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<Boundary>) -> Media {
     let mut media = Media {
         global: scene.medium.as_ref().map(MediumSpec::medium),
@@ -165,16 +166,34 @@ fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<
         lights: Vec::new(),
         interfaces: scene.materials.values().any(Material::is_interface),
     };
-    media.camera = media.at(geometry, Vec3A::from(scene.camera.eye));
+    // A point on each closed object's surface, tested against every other closed object.
+    let mut on_surface: Vec<Option<Vec3A>> = vec![None; media.boundaries.len()];
+    for pr in &geometry.prims {
+        if let Some(slot @ None) = on_surface.get_mut(pr.object as usize) {
+            *slot = Some(pr.shape.sample_area(glam::Vec2::splat(0.5)).0);
+        }
+    }
+    let exteriors: Vec<Option<Medium>> = (0..media.boundaries.len())
+        .map(|o| match on_surface[o] {
+            Some(p) if matches!(media.boundaries[o], Boundary::Closed { .. }) => media.at(geometry, p, Some(o as u32)),
+            _ => media.global,
+        })
+        .collect();
+    for (b, outside) in media.boundaries.iter_mut().zip(exteriors) {
+        if let Boundary::Closed { exterior, .. } = b {
+            *exterior = outside;
+        }
+    }
+    media.camera = media.at(geometry, Vec3A::from(scene.camera.eye), None);
     media.lights = lights
         .lights
         .iter()
         .map(|l| match l {
-            Light::Point { p, .. } => media.at(geometry, *p),
+            Light::Point { p, .. } => media.at(geometry, *p, None),
             // An open emitter's medium is the one around a point on it; a closed one's photons leave through
             // its surface, which `Media::leaving` settles.
             Light::Area { prim, .. } => match geometry.prims.get(*prim as usize) {
-                Some(pr) => media.at(geometry, pr.shape.sample_area(glam::Vec2::splat(0.5)).0),
+                Some(pr) => media.at(geometry, pr.shape.sample_area(glam::Vec2::splat(0.5)).0, Some(pr.object)),
                 None => media.global,
             },
         })
@@ -223,7 +242,11 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
         let mut boundary = Boundary::Open;
         match o {
             Object::Sphere { center, radius, emission, interior, .. } => {
-                boundary = Boundary::Closed { interior: interior.as_ref().map(MediumSpec::medium), inward: false };
+                boundary = Boundary::Closed {
+                    interior: interior.as_ref().map(MediumSpec::medium),
+                    exterior: None,
+                    inward: false,
+                };
                 push(Shape::Sphere(Sphere { center: *center, radius: *radius }), emission)
             }
             Object::Plane { point, normal, .. } => planes.push(PlanePrimitive {
@@ -279,9 +302,11 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
                 let mesh = level_of_detail(mesh, lods.get(i).and_then(Option::as_ref), file, *lod);
                 if with_media {
                     boundary = match (crate::medium::closed_mesh_orientation(&mesh.triangles), interior) {
-                        (Some(inward), interior) => {
-                            Boundary::Closed { interior: interior.as_ref().map(MediumSpec::medium), inward }
-                        }
+                        (Some(inward), interior) => Boundary::Closed {
+                            interior: interior.as_ref().map(MediumSpec::medium),
+                            exterior: None,
+                            inward,
+                        },
                         (None, None) => Boundary::Open,
                         (None, Some(_)) => {
                             return Err(SceneError::Invalid {

@@ -282,7 +282,7 @@ fn pixel_estimate(
         Some(media) => {
             let mut along = |r: &Ray, m: &Medium, t_max: f32, s: &mut Sampler, rays: &mut u64| -> Rgb {
                 let Some((t, pdf, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
-                let mass = 1.0 - m.pass_probability(t_max);
+                let mass = m.segment_mass(t_max);
                 let density = |x: f32| m.distance_pdf(x) / mass;
                 let direct = in_scattering(prep, m, r, t_max, Some((t, pdf)), &density, Strategy::Mis, false, s, rays);
                 let indirect = match volume {

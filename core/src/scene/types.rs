@@ -568,9 +568,7 @@ impl MediumSpec {
             }
             Ok(())
         };
-        // Beyond 1e30 per unit, σ·d overflows f32 for ordinary distances and a transmittance of exactly 0 is
-        // what the user meant anyway; the bound keeps every product finite.
-        const MAX_SIGMA: f32 = 1e30;
+        use crate::medium::MAX_SIGMA;
         let sigma = "finite numbers ≥ 0 (1/scene-unit, at most 1e30)";
         coefficients("sigma_a", &self.sigma_a, MAX_SIGMA, sigma)?;
         coefficients("sigma_s", &self.sigma_s, MAX_SIGMA, sigma)?;

@@ -132,6 +132,15 @@ impl Scene {
             }
         };
         if let Some(e) = emission {
+            if self.materials.get(o.material()).is_some_and(crate::material::Material::is_interface) {
+                return Err(FieldError::new(
+                    f("emission"),
+                    format!(
+                        "material `{}` is an interface, which has no surface to emit light from",
+                        crate::input::excerpt(o.material())
+                    ),
+                ));
+            }
             let v = e.radiance;
             if !v.is_finite() || v.min_element() < 0.0 {
                 return Err(FieldError::new(
