@@ -210,7 +210,7 @@ fn mis_weight(own: f32, d: Densities) -> f32 {
 /// flight, when it scattered in the segment); `distance_pdf(t)` is that density at any `t`, for the MIS
 /// weights (the power heuristic, Veach 1997 §9.2.4). With `phase_hits`, the caller also counts emission that a
 /// phase-sampled direction from the free-flight point finds (the path tracer), and area-light samples share
-/// the weight with that strategy ([`emission_weight`]). The result is not weighted by the path's throughput.
+/// the weight with that strategy (`emission_from_medium`). The result is not weighted by the path's throughput.
 #[allow(clippy::too_many_arguments)]
 pub fn in_scattering(
     prep: &Prepared,
