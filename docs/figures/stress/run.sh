@@ -62,7 +62,7 @@ render() {
     line=$(timeout "$limit" "$bin" render "$@" --size "$size" --threads "$threads" -o "$tmp/$name.exr" -q 2>"$tmp/$name.err") ||
         return 1
     secs=$(sed -E 's/.* ([0-9.]+) s render.*/\1/' <<<"$line")
-    prep=$(sed -E 's/.*\(\+([0-9.]+) s prepare\).*/\1/' <<<"$line")
+    prep=$(sed -E 's/.*\(\+([0-9.]+) s prepare[,)].*/\1/' <<<"$line")
 }
 
 # check NAME: NaN/Inf/negative counts of $tmp/NAME.exr, as "nan,inf,neg"; writes $out/NAME.png from the EXR
