@@ -24,11 +24,11 @@
 //! Variance: the blocks are split into two interleaved half-images `A` and `B` by the parity of their index
 //! (`half_of`; interleaved blocks rather than interleaved samples: a block is the unit a worker returns, and
 //! both halves then span the whole render, so they carry the same bias). Blocks hold an even number of passes
-//! starting at an even pass (but for an odd budget's last): samples `2k` and `2k + 1` of the (0,2)-sequence lie
+//! starting at an even pass (but for an odd budget's last): samples `2k` and `2k + 1` of a pixel's Sobol sequence lie
 //! in opposite halves of the pixel, so a block of such pairs covers the whole pixel, and the halves' difference
 //! is noise rather than the pixel's sub-pixel detail. With `nA`, `nB` passes and per-pass variance σ²,
 //! `E[(Ā − B̄)²] = σ²(1/nA + 1/nB)`, so the variance of the full mean is estimated per pixel value as
-//! `(Ā − B̄)² / ((1/nA + 1/nB)(nA + nB))`. The (0,2)-sequence stratifies the samples of the whole render better
+//! `(Ā − B̄)² / ((1/nA + 1/nB)(nA + nB))`. The Sobol sequence stratifies the samples of the whole render better
 //! than two independent halves, so this estimate errs high.
 //!
 //! Bias (progressive photon mapping only; the path tracer and direct lighting are unbiased): the kernel bias of a

@@ -364,9 +364,11 @@ fn furnace_random_walk(density: f64, albedo: f64, walks: u64) -> f64 {
 
 #[test]
 fn an_absorbing_medium_in_an_emitting_sphere_matches_an_analog_random_walk() {
+    // 256 spp: at 64 the mean of σt 3, ρ 0.9 moves by ±1.5 % from seed to seed (0.1967 to 0.2025 over seeds 1–6),
+    // too close to the 2 % tolerance; at 1024 spp it is 0.2008 against the walk's 0.2015.
     for (density, albedo) in [(1.0f32, 0.7f32), (3.0, 0.9)] {
         let reference = furnace_random_walk(f64::from(density), f64::from(albedo), 400_000);
-        let mean = volumetric_furnace(density, albedo, 0.0, Integrator::Path, 64);
+        let mean = volumetric_furnace(density, albedo, 0.0, Integrator::Path, 256);
         eprintln!("furnace σt {density}, albedo {albedo}: path {mean:.4}, random walk {reference:.4}");
         assert!((mean - reference).abs() / reference < 0.02, "σt {density}, ρ {albedo}: {mean} vs {reference}");
     }

@@ -320,21 +320,25 @@ fn a_far_dense_mesh_renders_within_the_noise_of_the_full_mesh() {
     let full = prepare(&scene("tele-full", &obj, 60.0, 4.0, 64, "lod = 0", ""));
     let lod = prepare(&scene("tele-lod", &obj, 60.0, 4.0, 64, "lod = 1", ""));
     let (n0, n1) = (triangles(&full), triangles(&lod));
-    let reference = image(&full);
-    let simplified = image(&lod);
-    let e = compare(&simplified, &reference, None).unwrap();
-    // The render's own noise: the full mesh with another seed.
-    let mut scene2 = Scene::load(&dir().join("tele-full.toml")).unwrap();
-    scene2.render.seed = 2;
-    let other_seed = image(&Prepared::new(&scene2, &dir().join("tele-full.toml")).unwrap());
-    let noise = compare(&other_seed, &reference, None).unwrap();
+    // A converged image of the full mesh (another seed, 16× the samples), and each render's error against it:
+    // the full mesh's is its noise alone, the simplified mesh's is the same noise (the same seed and samples)
+    // plus the square of what the simplification changed.
+    let mut converged = Scene::load(&dir().join("tele-full.toml")).unwrap();
+    converged.render.seed = 3;
+    converged.render.spp *= 16;
+    let reference = image(&Prepared::new(&converged, &dir().join("tele-full.toml")).unwrap());
+    let noise = compare(&image(&full), &reference, None).unwrap();
+    let e = compare(&image(&lod), &reference, None).unwrap();
     eprintln!(
-        "{n0} → {n1} triangles; relMSE against the full mesh: lod {:.2e}, another seed {:.2e}",
+        "{n0} → {n1} triangles; relMSE against the converged full mesh: lod {:.3e}, full {:.3e}",
         e.rel_mse, noise.rel_mse
     );
     assert!(n1 * 4 < n0, "{n1} of {n0}");
-    // Same seed, so the difference is the geometry's alone: it must be below what the sampler itself leaves.
-    assert!(e.rel_mse < noise.rel_mse, "{} vs {}", e.rel_mse, noise.rel_mse);
+    // Within the noise: the simplification's squared error (e − noise) is below the render's own noise variance
+    // at this budget (measured: 2.15e-2 against 1.24e-2, so about 0.7 of it). The former form of this test,
+    // the same-seed difference below another seed's, allowed up to twice the noise when the two renders'
+    // paths decorrelate.
+    assert!(e.rel_mse < 2.0 * noise.rel_mse, "{} vs {}", e.rel_mse, noise.rel_mse);
 }
 
 #[test]

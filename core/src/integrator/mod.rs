@@ -188,6 +188,9 @@ pub fn visible_point_in(
             continue;
         }
         let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.black_from(wo) {
+            break;
+        }
         if bsdf.has_non_delta() {
             return VisiblePoint { le, volume: in_volume, vertex: Some((beta, hit, bsdf, wo)), medium };
         }

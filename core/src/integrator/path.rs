@@ -42,6 +42,9 @@ pub fn li(prep: &Prepared, max_depth: u32, mut ray: Ray, s: &mut Sampler, rays: 
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.black_from(wo) {
+            break;
+        }
         if bsdf.has_non_delta() {
             l += beta * sample_one_light(prep, &hit, &bsdf, wo, None, s, rays, true);
         }

@@ -393,6 +393,9 @@ pub fn path_li(
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.black_from(wo) {
+            break;
+        }
         if bsdf.has_non_delta() {
             l += beta * super::sample_one_light(prep, &hit, &bsdf, wo, medium, s, rays, true);
         }

@@ -119,6 +119,9 @@ pub struct Bsdf {
     pub ng: Vec3A,
     /// The lobes.
     pub bxdf: Bxdf,
+    /// Whether the surface is black seen from behind (`wo·ng ≤ 0`): there `f`, `pdf` and `albedo` are 0 and
+    /// `sample` returns nothing. See [`Bsdf::black_from`].
+    pub one_sided: bool,
 }
 
 impl Bsdf {
@@ -126,7 +129,22 @@ impl Bsdf {
     /// side of `ng` is flipped.
     pub fn new(ns: Vec3A, ng: Vec3A, bxdf: Bxdf) -> Self {
         let ns = if ns.dot(ng) < 0.0 { -ns } else { ns };
-        Self { frame: Frame::from_normal(ns), ng, bxdf }
+        Self { frame: Frame::from_normal(ns), ng, bxdf, one_sided: false }
+    }
+
+    /// The same BSDF, one-sided when `one_sided` (black seen from behind) or two-sided.
+    #[must_use]
+    pub fn one_sided(mut self, one_sided: bool) -> Self {
+        self.one_sided = one_sided;
+        self
+    }
+
+    /// Whether the surface scatters nothing towards or from `wo`: a one-sided surface seen from behind, the side
+    /// its geometric normal points away from. Integrators end a path there (the light is absorbed), and photons
+    /// arriving there are absorbed without being stored, so a density estimate never counts them.
+    #[inline]
+    pub fn black_from(&self, wo: Vec3A) -> bool {
+        self.one_sided && wo.dot(self.ng) <= 0.0
     }
 
     /// The BSDF of the non-delta lobes for the pair (`wo`, `wi`), without the cosine factor. Zero for mirrors
@@ -135,7 +153,7 @@ impl Bsdf {
     pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Rgb {
         // The non-delta lobes are reflective and reciprocal: the transport mode does not change them.
         let _ = mode;
-        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 {
+        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 || self.black_from(wo) {
             return Rgb::ZERO;
         }
         let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
@@ -179,7 +197,7 @@ impl Bsdf {
     /// probabilities included. Zero when the BSDF has no non-delta lobe.
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
         let side = wo.dot(self.ng);
-        if side * wi.dot(self.ng) <= 0.0 {
+        if side * wi.dot(self.ng) <= 0.0 || self.black_from(wo) {
             return 0.0;
         }
         let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
@@ -208,6 +226,9 @@ impl Bsdf {
     /// material chooses its component with probability `weight / (sum of weights)`, so it never absorbs here:
     /// its absorption shows in the sample weight `f·|cos|/pdf` (and in [`Bsdf::albedo`], for Russian roulette).
     pub fn sample(&self, wo: Vec3A, u: f32, u2: Vec2, mode: TransportMode) -> Option<BsdfSample> {
+        if self.black_from(wo) {
+            return None;
+        }
         let wo_l = self.frame.to_local(wo);
         // The hemisphere of the shading normal on wo's geometric side (see the module docs).
         let up = wo.dot(self.ng);
@@ -255,7 +276,9 @@ impl Bsdf {
     /// loses what its lobe puts below the horizon elsewhere). This is the flux (importance-mode) value: the
     /// `1/η'²` of radiance transport moves no energy.
     pub fn albedo(&self, wo: Vec3A) -> Rgb {
-        let _ = wo;
+        if self.black_from(wo) {
+            return Rgb::ZERO;
+        }
         match self.bxdf {
             Bxdf::Lambert { r } | Bxdf::Mirror { r } => r,
             Bxdf::Phong { kd, ks, .. } => (kd + ks).min(Rgb::ONE),

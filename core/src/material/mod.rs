@@ -52,6 +52,12 @@
 //!   (each ≥ 0, default 0, so a mix names the parts it has) sum to at most 1, and the rest is absorbed;
 //!   `eta` as for `dielectric` (default 1.5).
 //!
+//! `lambert`, `phong` and `mirror` take `two_sided` (default `true`): a one-sided surface (`false`) reflects only
+//! on its front, the side its geometric normal points to, and is black from behind, where it absorbs the light
+//! and the photons that arrive (Mitsuba 3's rule for its BSDFs). The default follows pbrt-v4, Cycles and
+//! LuxCore, whose diffuse and glossy surfaces reflect on both sides: meshes from the field are often wound
+//! inconsistently, and one-sided faces would show them as black holes.
+//!
 //! Unknown fields are errors. [`Material::validate`] checks the ranges; the scene loader reports its message
 //! under the material's path.
 
@@ -83,6 +89,10 @@ pub enum Material {
         /// Tangent-space normal map (default none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal_map: Option<NormalMap>,
+        /// Whether the surface reflects on both sides (default true); a one-sided surface is black seen from
+        /// behind (the side its geometric normal points away from) and absorbs the light that arrives there.
+        #[serde(default = "default_true", skip_serializing_if = "is_true")]
+        two_sided: bool,
     },
     /// Modified Phong: a diffuse and an energy-conserving glossy lobe.
     Phong {
@@ -101,6 +111,10 @@ pub enum Material {
         /// Tangent-space normal map (default none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal_map: Option<NormalMap>,
+        /// Whether the surface reflects on both sides (default true); a one-sided surface is black seen from
+        /// behind (the side its geometric normal points away from) and absorbs the light that arrives there.
+        #[serde(default = "default_true", skip_serializing_if = "is_true")]
+        two_sided: bool,
     },
     /// A perfect mirror.
     Mirror {
@@ -113,6 +127,10 @@ pub enum Material {
         /// Tangent-space normal map (default none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal_map: Option<NormalMap>,
+        /// Whether the surface reflects on both sides (default true); a one-sided surface is black seen from
+        /// behind (the side its geometric normal points away from) and absorbs the light that arrives there.
+        #[serde(default = "default_true", skip_serializing_if = "is_true")]
+        two_sided: bool,
     },
     /// Smooth glass.
     Dielectric {
@@ -170,7 +188,7 @@ enum LobesBinary {
 }
 
 #[derive(Serialize, Deserialize)]
-struct MaterialBinary(LobesBinary, Option<BumpMap>, Option<NormalMap>);
+struct MaterialBinary(LobesBinary, Option<BumpMap>, Option<NormalMap>, bool);
 
 impl Serialize for Material {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
@@ -189,7 +207,7 @@ impl Serialize for Material {
             }
             Material::Interface {} => LobesBinary::Interface,
         };
-        MaterialBinary(lobes, bump, normal_map).serialize(s)
+        MaterialBinary(lobes, bump, normal_map, self.two_sided()).serialize(s)
     }
 }
 
@@ -198,13 +216,13 @@ impl<'de> Deserialize<'de> for Material {
         if d.is_human_readable() {
             return Material::deserialize(d);
         }
-        let MaterialBinary(lobes, bump, normal_map) = MaterialBinary::deserialize(d)?;
+        let MaterialBinary(lobes, bump, normal_map, two_sided) = MaterialBinary::deserialize(d)?;
         Ok(match lobes {
-            LobesBinary::Lambert(albedo) => Material::Lambert { albedo, bump, normal_map },
+            LobesBinary::Lambert(albedo) => Material::Lambert { albedo, bump, normal_map, two_sided },
             LobesBinary::Phong(diffuse, specular, exponent) => {
-                Material::Phong { diffuse, specular, exponent, bump, normal_map }
+                Material::Phong { diffuse, specular, exponent, bump, normal_map, two_sided }
             }
-            LobesBinary::Mirror(reflectance) => Material::Mirror { reflectance, bump, normal_map },
+            LobesBinary::Mirror(reflectance) => Material::Mirror { reflectance, bump, normal_map, two_sided },
             LobesBinary::Dielectric(eta, tint) => Material::Dielectric { eta, tint, bump, normal_map },
             LobesBinary::Mix(color, diffuse, specular, transmission, eta) => {
                 Material::Mix { color, diffuse, specular, transmission, eta, bump, normal_map }
@@ -216,6 +234,14 @@ impl<'de> Deserialize<'de> for Material {
 
 fn default_albedo() -> Texture {
     Texture::grey(0.8)
+}
+
+fn default_true() -> bool {
+    true
+}
+
+fn is_true(b: &bool) -> bool {
+    *b
 }
 
 fn default_one() -> Texture {
@@ -241,7 +267,7 @@ fn default_eta() -> f32 {
 impl Default for Material {
     /// Grey Lambert with albedo 0.8.
     fn default() -> Self {
-        Material::Lambert { albedo: default_albedo(), bump: None, normal_map: None }
+        Material::Lambert { albedo: default_albedo(), bump: None, normal_map: None, two_sided: true }
     }
 }
 
@@ -372,11 +398,11 @@ impl Material {
     /// [`Material::images`], mutable, so that preparing the scene can set each image's slot.
     pub fn images_mut(&mut self) -> Vec<(&'static str, &mut ImageRef)> {
         let (colors, bump, normal_map): (Vec<(&'static str, &mut Texture)>, _, _) = match self {
-            Material::Lambert { albedo, bump, normal_map } => (vec![("albedo", albedo)], bump, normal_map),
+            Material::Lambert { albedo, bump, normal_map, .. } => (vec![("albedo", albedo)], bump, normal_map),
             Material::Phong { diffuse, specular, bump, normal_map, .. } => {
                 (vec![("diffuse", diffuse), ("specular", specular)], bump, normal_map)
             }
-            Material::Mirror { reflectance, bump, normal_map } => {
+            Material::Mirror { reflectance, bump, normal_map, .. } => {
                 (vec![("reflectance", reflectance)], bump, normal_map)
             }
             Material::Dielectric { tint, bump, normal_map, .. } => (vec![("tint", tint)], bump, normal_map),
@@ -438,7 +464,18 @@ impl Material {
             // through unchanged.
             Material::Interface {} => Bxdf::Dielectric { eta: 1.0, tint: crate::Rgb::ONE },
         };
-        Bsdf::new(self.shading_normal(hit, images), hit.n, bxdf)
+        Bsdf::new(self.shading_normal(hit, images), hit.n, bxdf).one_sided(!self.two_sided())
+    }
+
+    /// Whether the surface reflects on both sides: the `two_sided` field of lambert, phong and mirror; glass,
+    /// mix and interface act on both sides by nature.
+    pub fn two_sided(&self) -> bool {
+        match self {
+            Material::Lambert { two_sided, .. }
+            | Material::Phong { two_sided, .. }
+            | Material::Mirror { two_sided, .. } => *two_sided,
+            Material::Dielectric { .. } | Material::Mix { .. } | Material::Interface {} => true,
+        }
     }
 
     /// Whether the material has a delta (perfectly specular: mirror or glass) component, so that caustic paths
@@ -520,7 +557,12 @@ mod tests {
         }
         assert_eq!(
             m["red"],
-            Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]), bump: None, normal_map: None }
+            Material::Lambert {
+                albedo: Texture::from([0.63, 0.065, 0.05]),
+                bump: None,
+                normal_map: None,
+                two_sided: true
+            }
         );
         assert_eq!(
             m["glass"],
@@ -543,10 +585,14 @@ mod tests {
                 specular: Texture::grey(0.3),
                 exponent: 20.0,
                 bump: None,
-                normal_map: None
+                normal_map: None,
+                two_sided: true,
             }
         );
-        assert_eq!(m["c"], Material::Mirror { reflectance: Texture::grey(1.0), bump: None, normal_map: None });
+        assert_eq!(
+            m["c"],
+            Material::Mirror { reflectance: Texture::grey(1.0), bump: None, normal_map: None, two_sided: true }
+        );
         assert_eq!(m["d"], Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), bump: None, normal_map: None });
         assert_eq!(
             m["e"],
@@ -575,7 +621,8 @@ mod tests {
                 specular: Texture::from([1.0, 0.0, 0.0]),
                 exponent: 100.0,
                 bump: None,
-                normal_map: None
+                normal_map: None,
+                two_sided: true,
             }
         );
     }
@@ -610,18 +657,14 @@ mod tests {
             materials: BTreeMap::from([
                 (
                     "a".into(),
-                    Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]), bump: None, normal_map: None },
-                ),
-                (
-                    "b".into(),
-                    Material::Phong {
-                        diffuse: 0.2.into(),
-                        specular: 0.7.into(),
-                        exponent: 8.0,
+                    Material::Lambert {
+                        albedo: Texture::from([0.63, 0.065, 0.05]),
                         bump: None,
                         normal_map: None,
+                        two_sided: true,
                     },
                 ),
+                ("b".into(), phong(true)),
                 ("c".into(), mix()),
                 ("d".into(), textured("wood.png", crate::geometry::NONE)),
             ]),
@@ -663,6 +706,18 @@ mod tests {
             exponent: 30.0,
             bump: Some(BumpMap { image, strength: -0.02 }),
             normal_map: None,
+            two_sided: false,
+        }
+    }
+
+    fn phong(two_sided: bool) -> Material {
+        Material::Phong {
+            diffuse: 0.2.into(),
+            specular: 0.7.into(),
+            exponent: 8.0,
+            bump: None,
+            normal_map: None,
+            two_sided,
         }
     }
 
@@ -670,9 +725,15 @@ mod tests {
     fn binary_round_trip() {
         // Prepared scenes travel to workers through bincode, which cannot read the scene file's internal tag.
         let all = vec![
-            Material::Lambert { albedo: Texture::from([0.63, 0.065, 0.05]), bump: None, normal_map: None },
-            Material::Phong { diffuse: 0.2.into(), specular: 0.7.into(), exponent: 8.0, bump: None, normal_map: None },
-            Material::Mirror { reflectance: 0.9.into(), bump: None, normal_map: None },
+            Material::Lambert {
+                albedo: Texture::from([0.63, 0.065, 0.05]),
+                bump: None,
+                normal_map: None,
+                two_sided: true,
+            },
+            // One-sided: the binary form carries the flag.
+            phong(false),
+            Material::Mirror { reflectance: 0.9.into(), bump: None, normal_map: None, two_sided: true },
             Material::Dielectric { eta: 1.33, tint: [1.0, 0.9, 0.8].into(), bump: None, normal_map: None },
             mix(),
             // The binary form carries an image's slot, not its file name.
@@ -685,8 +746,8 @@ mod tests {
     #[test]
     fn validation_names_the_field() {
         let cases = [
-            (Material::Lambert { albedo: 1.2.into(), bump: None, normal_map: None }, "albedo"),
-            (Material::Lambert { albedo: f32::NAN.into(), bump: None, normal_map: None }, "albedo"),
+            (Material::Lambert { albedo: 1.2.into(), bump: None, normal_map: None, two_sided: true }, "albedo"),
+            (Material::Lambert { albedo: f32::NAN.into(), bump: None, normal_map: None, two_sided: true }, "albedo"),
             (
                 Material::Phong {
                     diffuse: 0.6.into(),
@@ -694,6 +755,7 @@ mod tests {
                     exponent: 10.0,
                     bump: None,
                     normal_map: None,
+                    two_sided: true,
                 },
                 "diffuse + specular",
             ),
@@ -704,6 +766,7 @@ mod tests {
                     exponent: -1.0,
                     bump: None,
                     normal_map: None,
+                    two_sided: true,
                 },
                 "exponent",
             ),
@@ -714,10 +777,14 @@ mod tests {
                     exponent: 1e30,
                     bump: None,
                     normal_map: None,
+                    two_sided: true,
                 },
                 "exponent",
             ),
-            (Material::Mirror { reflectance: (-0.1).into(), bump: None, normal_map: None }, "reflectance"),
+            (
+                Material::Mirror { reflectance: (-0.1).into(), bump: None, normal_map: None, two_sided: true },
+                "reflectance",
+            ),
             (Material::Dielectric { eta: 0.0, tint: 1.0.into(), bump: None, normal_map: None }, "eta"),
             (Material::Dielectric { eta: 1.5, tint: f32::INFINITY.into(), bump: None, normal_map: None }, "tint"),
             (
@@ -781,7 +848,8 @@ mod tests {
             prim: PrimRef::Plane(0),
         };
         let b =
-            Material::Lambert { albedo: Texture::from([0.1, 0.2, 0.3]), bump: None, normal_map: None }.bsdf(&hit, &[]);
+            Material::Lambert { albedo: Texture::from([0.1, 0.2, 0.3]), bump: None, normal_map: None, two_sided: true }
+                .bsdf(&hit, &[]);
         assert_eq!(b.bxdf, Bxdf::Lambert { r: Rgb::new(0.1, 0.2, 0.3) });
         assert_eq!((b.frame.n, b.ng), (ns, Vec3A::Z));
         // Glass seen from below the geometric normal is seen from inside: leaving into air refracts away from

@@ -112,7 +112,7 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
                 for (e, v) in emitted.iter_mut().zip(phi.to_array()) {
                     *e += f64::from(v);
                 }
-                let mut s = Sampler::for_photon(prep.settings.seed, pass, i);
+                let mut s = Sampler::for_light_path(prep.settings.seed, pass, l as u64, i - starts[l]);
                 trace_path(prep, l, phi, &mut s, kind, &mut out, &mut volume);
             }
             (out, volume, emitted)
@@ -221,6 +221,10 @@ pub fn trace_path(
         }
         let bsdf = material.bsdf(&hit, &prep.textures);
         let wo = -ray.d;
+        if bsdf.black_from(wo) {
+            // The back of a one-sided surface absorbs the photon; it is not stored.
+            return;
+        }
         if bsdf.has_non_delta() {
             let keep = match kind {
                 PhotonKind::Global => true,

@@ -1,11 +1,10 @@
 //! The strip renderer: rows of pixels in parallel with rayon.
 //!
-//! Each pixel sample draws from its own stream seeded by `(seed, x, y, sample)`, so a pixel's value does not
-//! depend on strips, threads or workers. Sample positions in the pixel (a box filter) follow the (0,2)-sequence:
-//! sample `i` lies at (second Sobol dimension of `i`, van der Corput radical inverse of `i`) (Kollig & Keller
-//! 2002, "Efficient Multidimensional Sampling", §2.2), whose every prefix of 2^m samples has one sample in each
-//! elementary interval of area 2^−m; the whole pattern is rotated by a per-pixel random offset
-//! (Cranley–Patterson), which keeps every sample uniformly distributed and the estimate unbiased. No sample
+//! Each pixel sample draws from its own stream identified by `(seed, x, y, sample)`, so a pixel's value does not
+//! depend on strips, threads or workers. The samples of a pixel are the points of one padded, scrambled
+//! Sobol sequence ([`Sampler`]): their first draw places them in the pixel (a box filter), and every aligned
+//! block of 2^m samples has one sample in each elementary interval of area 2^−m, in the pixel and in every
+//! later 2D draw (lens, light, BSDF). Each point is uniformly distributed, so the estimate is unbiased. No sample
 //! depends on how many there will be, so the first `K` samples are the same points whether `K` was fixed ahead
 //! (`--spp`) or reached by a time or error bound.
 //!
@@ -96,10 +95,9 @@ pub fn render_strip_with(prep: &Prepared, rows: Range<u32>, progress: &(dyn Fn(u
 pub fn render_pixel(prep: &Prepared, x: u32, y: u32, rays: &mut u64) -> Rgb {
     let settings = &prep.settings;
     let spp = settings.spp.max(1);
-    let offset = pixel_rotation(settings.seed, x, y);
     let mut sum = [0i128; 3];
     for i in 0..spp {
-        let c = pixel_sample(prep, x, y, i, offset, rays);
+        let c = pixel_sample(prep, x, y, i, rays);
         for (s, v) in sum.iter_mut().zip(c.to_array()) {
             *s += i128::from(progressive::to_fixed(v));
         }
@@ -132,9 +130,8 @@ pub(crate) fn render_sample_block(
             let mut rays = 0u64;
             for (x, px) in row.chunks_exact_mut(3).enumerate() {
                 let x = x as u32;
-                let offset = pixel_rotation(prep.settings.seed, x, y);
                 for i in samples.clone() {
-                    let c = pixel_sample(prep, x, y, i, offset, &mut rays);
+                    let c = pixel_sample(prep, x, y, i, &mut rays);
                     for (s, v) in px.iter_mut().zip(c.to_array()) {
                         *s = s.saturating_add(progressive::to_fixed(v));
                     }
@@ -153,46 +150,20 @@ pub(crate) fn render_sample_block(
     Some(progressive::PassSums { rows, passes: samples, sums, rays, photon_paths: 0, photon_seconds: 0.0 })
 }
 
-/// Sample `i` of pixel `(x, y)` (whose pattern is rotated by `offset`, [`pixel_rotation`]): the radiance the
-/// method's estimator ([`li`]) returns along its camera ray.
-fn pixel_sample(prep: &Prepared, x: u32, y: u32, i: u32, offset: Vec2, rays: &mut u64) -> Rgb {
-    let (ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, i, offset);
+/// Sample `i` of pixel `(x, y)`: the radiance the method's estimator ([`li`]) returns along its camera ray.
+fn pixel_sample(prep: &Prepared, x: u32, y: u32, i: u32, rays: &mut u64) -> Rgb {
+    let (ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, i);
     li(prep, ray, &mut s, rays)
 }
 
-/// The per-pixel Cranley–Patterson rotation of the sample pattern.
-fn pixel_rotation(seed: u64, x: u32, y: u32) -> Vec2 {
-    Sampler::for_pixel(seed, x, y, u32::MAX).next_2d()
-}
-
-/// Camera ray and random stream of sample `i` in pixel `(x, y)`.
-fn camera_sample(prep: &Prepared, seed: u64, x: u32, y: u32, i: u32, rotation: Vec2) -> (Ray, Sampler) {
+/// Camera ray and sample stream of sample `i` in pixel `(x, y)`. The stream's first draw places the sample in
+/// the pixel (a box filter), its second on the lens; the samples of a pixel are one Sobol sequence, so both
+/// are stratified over `i` (see [`Sampler`]).
+fn camera_sample(prep: &Prepared, seed: u64, x: u32, y: u32, i: u32) -> (Ray, Sampler) {
     let mut s = Sampler::for_pixel(seed, x, y, i);
-    let strat = Vec2::new(sobol_2(i), radical_inverse_2(i));
-    let film = Vec2::new(x as f32, y as f32) + (strat + rotation).fract();
+    let film = Vec2::new(x as f32, y as f32) + s.next_2d();
     let ray = prep.camera.ray(film, s.next_2d());
     (ray, s)
-}
-
-/// The base-2 radical inverse (van der Corput sequence) of `i`.
-#[inline]
-fn radical_inverse_2(i: u32) -> f32 {
-    (i.reverse_bits() >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
-}
-
-/// The second dimension of the Sobol sequence at index `i` (generator matrix: Pascal's triangle mod 2), in
-/// `[0, 1)` with 24 bits: with [`radical_inverse_2`] it makes the (0,2)-sequence (Kollig & Keller 2002, §2.2).
-#[inline]
-fn sobol_2(i: u32) -> f32 {
-    let (mut bits, mut v, mut n) = (0u32, 1u32 << 31, i);
-    while n != 0 {
-        if n & 1 != 0 {
-            bits ^= v;
-        }
-        n >>= 1;
-        v ^= v >> 1;
-    }
-    (bits >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
 }
 
 /// Renders the whole image on this machine.

@@ -22,7 +22,7 @@
 //! their order of arrival, the workers and the threads: it depends only on (scene, seed, passes). A block of at
 //! most [`MAX_BLOCK_PASSES`] passes fits `i64`; the whole render is summed in `i128` ([`PassAccumulator`]).
 
-use super::{Strip, camera_sample, pixel_rotation};
+use super::{Strip, camera_sample};
 use crate::Rgb;
 use crate::integrator::volume::{Strategy, in_scattering, segment_point};
 use crate::integrator::{sample_one_light, visible_point, visible_point_in};
@@ -276,7 +276,7 @@ fn pixel_estimate(
 ) -> Rgb {
     let settings = &prep.settings;
     let seed = settings.seed;
-    let (ray, mut s) = camera_sample(prep, seed, x, y, pass, pixel_rotation(seed, x, y));
+    let (ray, mut s) = camera_sample(prep, seed, x, y, pass);
     let vp = match &prep.media {
         None => visible_point(prep, settings.max_depth, ray, &mut s, rays),
         Some(media) => {

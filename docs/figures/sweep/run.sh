@@ -6,6 +6,7 @@
 #
 #   bash docs/figures/sweep/run.sh                         # all four
 #   bash docs/figures/sweep/run.sh fog volume-caustic      # some of them
+#   bash docs/figures/sweep/run.sh rooms-boxes rooms-spheres   # the Mitsuba rooms (not in the default four)
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 bin=${PHOTON_BIN:-target/release}
@@ -16,7 +17,7 @@ trap 'rm -rf "$work"' EXIT
 out=docs/figures/sweep
 methods=path,photon-map,final-gather,progressive
 
-# sweep NAME SCENE SIZE REFERENCE-ARGS... -- SWEEP-ARGS...
+# sweep NAME SCENE SIZE REFERENCE-ARGS... -- SWEEP-ARGS... (budgets 1,2,4,8,16,32 unless BUDGET is set)
 sweep() {
   local name=$1 scene=$2 size=$3
   shift 3
@@ -24,7 +25,7 @@ sweep() {
   while [ "$1" != "--" ]; do ref+=("$1"); shift; done
   shift
   time "$pc" reference "$scene" -o "$work/$name-ref.exr" --size "$size" "${ref[@]}"
-  time "$pc" sweep "$scene" --reference "$work/$name-ref.exr" --budget 1,2,4,8,16,32 --out "$work/$name" "$@"
+  time "$pc" sweep "$scene" --reference "$work/$name-ref.exr" --budget "${BUDGET:-1,2,4,8,16,32}" --out "$work/$name" "$@"
   rm -rf "${out:?}/$name"
   cp -r "$work/$name" "$out/$name"
 }
@@ -39,6 +40,12 @@ for s in "${@:-cornell caustic fog volume-caustic}"; do
       fog) sweep fog scenes/fog.toml 96x96 --spp 4096 -- --methods "path,direct,photon-map,final-gather,progressive" ;;
       # The volume caustic: only photon methods render it, so the reference is progressive photon mapping.
       volume-caustic) sweep volume-caustic scenes/volume-caustic.toml 96x72 --passes 1024 -- --methods "$methods" ;;
+      # The Mitsuba rooms at their own 256×256, budgets from under 1 s to about 40 s a render; the references are
+      # the path tracer's (an area light: every path can be found from the camera), about 5 minutes each.
+      rooms-boxes) BUDGET=1,2,4,8,16,32,64,128,256 sweep rooms-boxes scenes/rooms/cornell-boxes.toml 256x256 --spp 8192 -- \
+        --methods path,final-gather,progressive ;;
+      rooms-spheres) BUDGET=1,2,4,8,16,32,64,128,256 sweep rooms-spheres scenes/rooms/cornell-spheres.toml 256x256 \
+        --spp 8192 -- --methods path,final-gather,progressive ;;
       *) echo "unknown sweep $name" >&2; exit 2 ;;
     esac
   done
