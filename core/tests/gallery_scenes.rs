@@ -1,4 +1,4 @@
-//! Every scene of the gallery still renders: each shipped scene (`scenes/*.toml` and `scenes/stress/*.toml`), with
+//! Every scene of the gallery still renders: each shipped scene (`scenes/*.toml`, `scenes/stress/*.toml` and `scenes/rooms/*.toml`), with
 //! its own method at 16×16 and a tiny budget, gives a finite, non-negative image that is not black; and
 //! docs/gallery/README.md, written by `python3 docs/gallery/make.py`, shows every one of them.
 
@@ -13,10 +13,10 @@ fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// The shipped scenes, as the gallery script lists them: the top-level folder, then the stress folder.
+/// The shipped scenes, as the gallery script lists them: the top-level folder, the stress folder, the rooms.
 fn shipped_scenes() -> Vec<PathBuf> {
     let mut all = Vec::new();
-    for dir in ["scenes", "scenes/stress"] {
+    for dir in ["scenes", "scenes/stress", "scenes/rooms"] {
         let mut found: Vec<PathBuf> = std::fs::read_dir(repo().join(dir))
             .unwrap()
             .map(|e| e.unwrap().path())

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Renders the gallery: every shipped scene (scenes/*.toml and scenes/stress/*.toml) with its own settings.
+"""Renders the gallery: every shipped scene (scenes/*.toml, scenes/stress/*.toml and scenes/rooms/*.toml) with its own settings.
 
     python3 docs/gallery/make.py            # the whole gallery and the README's picture (a few minutes on 2 cores)
     python3 docs/gallery/make.py --no-readme   # the gallery only
@@ -51,7 +51,11 @@ def coordinator() -> Path:
 
 def scenes() -> list[Path]:
     """Every shipped scene, top level first, each folder sorted by name."""
-    return sorted((REPO / "scenes").glob("*.toml")) + sorted((REPO / "scenes" / "stress").glob("*.toml"))
+    return (
+        sorted((REPO / "scenes").glob("*.toml"))
+        + sorted((REPO / "scenes" / "stress").glob("*.toml"))
+        + sorted((REPO / "scenes" / "rooms").glob("*.toml"))
+    )
 
 
 def gallery_name(scene: Path) -> str:
@@ -193,7 +197,7 @@ def main() -> None:
 
     header = f"""# Gallery
 
-Every shipped scene (`scenes/*.toml` and `scenes/stress/*.toml`) rendered with its own method and budget at
+Every shipped scene (`scenes/*.toml`, `scenes/stress/*.toml` and `scenes/rooms/*.toml`) rendered with its own method and budget at
 {GALLERY_WIDTH} pixels wide, by `python3 docs/gallery/make.py` (this page and every image here are its output; run
 it again to regenerate them). Made {started} at commit `{commit.stdout.strip()}` with the release build on
 {os.cpu_count()} cores (load average {load:.1f} when it started).
