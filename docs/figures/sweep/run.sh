@@ -40,7 +40,7 @@ for s in "${@:-cornell caustic fog volume-caustic}"; do
       fog) sweep fog scenes/fog.toml 96x96 --spp 4096 -- --methods "path,direct,photon-map,final-gather,progressive" ;;
       # The volume caustic: only photon methods render it, so the reference is progressive photon mapping.
       volume-caustic) sweep volume-caustic scenes/volume-caustic.toml 96x72 --passes 1024 -- --methods "$methods" ;;
-      # The Mitsuba rooms at their own 256×256, budgets from under 1 s to about 80 s a render; the references are
+      # The Mitsuba rooms at their own 256×256, budgets from under 1 s to about 50 s a render (progressive at b = 128: 47 s); the references are
       # the path tracer's (an area light: every path can be found from the camera), about 5 minutes each.
       rooms-boxes) BUDGET=1,2,4,8,16,32,64,128 sweep rooms-boxes scenes/rooms/cornell-boxes.toml 256x256 --spp 8192 -- \
         --methods path,final-gather,progressive ;;
