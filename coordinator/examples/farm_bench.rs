@@ -358,15 +358,19 @@ fn model() {
             deliveries.push((", maps traced by workers", scene_bytes, scene_prepare_s, traced_load_s, false));
         }
         let rows = 8u32;
-        let (units, core_s_per_unit, fixed, per_unit, label) = if integrator == Integrator::Progressive {
-            // Two passes over 8 rows: the photon part is per pass, the gather part per row.
+        let (units, core_s_per_unit, fixed, per_unit, label) = if integrator.renders_passes() {
+            // Two passes over 8 rows: the photon (light path) part is per pass, the gather part per row.
             let (t, block) = one_thread(|| {
                 photon_core::render::progressive::render_passes(&prep, 0..rows, 0..2, &|_| true).expect("passes")
             });
             let photon_part = block.photon_seconds / 2.0;
             let per_pass = photon_part + (t - block.photon_seconds) / 2.0 / f64::from(rows) * f64::from(height);
             let passes = (target_s * lab_speed / per_pass).round() as u32;
-            let label = format!("{passes} passes of {photons} paths");
+            let label = if integrator == Integrator::Progressive {
+                format!("{passes} passes of {photons} paths")
+            } else {
+                format!("{passes} passes")
+            };
             (passes, per_pass, 24.0 * f64::from(width) * f64::from(height), 0.0, label)
         } else {
             let (t, _) = one_thread(|| photon_core::render::render_strip(&prep, 0..rows, &|_| {}));
@@ -374,7 +378,7 @@ fn model() {
             let spp = (target_s * lab_speed / (per_row_spp * f64::from(height))).round().max(1.0);
             (height, per_row_spp * spp, 0.0, 12.0 * f64::from(width), format!("{spp} spp"))
         };
-        let cuts: Vec<u32> = if integrator == Integrator::Progressive {
+        let cuts: Vec<u32> = if integrator.renders_passes() {
             let default = photon_coordinator::scheduler::passes_per_block_for(units, lab.len() as u32);
             // The default, and other cuts for comparison (more blocks: a shorter tail, more bytes to send back).
             let per_worker = |k: u32| units.div_ceil(lab.len() as u32 * k);

@@ -43,7 +43,11 @@ pub(crate) struct RenderArgs {
     /// Samples per pixel (overrides the scene's `render.spp`).
     #[arg(long)]
     pub(crate) spp: Option<u32>,
-    /// Method: `path`, `direct`, `photon-map`, `final-gather` or `progressive` (overrides `render.integrator`).
+    /// Method (overrides `render.integrator`): `path` (path tracing, the reference), `direct` (direct light
+    /// only), `photon-map` (the global map seen directly), `final-gather` (Jensen's two passes), `progressive`
+    /// (progressive photon mapping, in passes), `vcm` (vertex connection and merging: bidirectional paths and
+    /// photon merges weighted by MIS, in passes), `bdpt` (bidirectional path tracing: vcm without merging) or
+    /// `lt` (light tracing: light subpaths connected to the camera only).
     #[arg(long)]
     pub(crate) integrator: Option<Integrator>,
     /// Seed (overrides the scene's `render.seed`).
@@ -56,7 +60,7 @@ pub(crate) struct RenderArgs {
     /// `.pass_photons`).
     #[arg(long)]
     pub(crate) photons: Option<u32>,
-    /// Progressive photon-mapping passes (overrides `render.photons.passes`).
+    /// Passes of `progressive`, `vcm`, `bdpt` and `lt` (overrides `render.photons.passes`).
     #[arg(long)]
     pub(crate) passes: Option<u32>,
     /// Exposure in stops for 8-bit outputs (overrides the scene's `render.exposure`).
@@ -73,18 +77,18 @@ pub(crate) struct RenderArgs {
     /// Continue an interrupted render from the partial file it left (`OUTPUT.partial`).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["time", "target_error"])]
     pub(crate) resume: Option<PathBuf>,
-    /// Render in rounds until this much time has passed since the command started (e.g. `90s`, `1.5m`): photon
-    /// passes for progressive photon mapping, samples per pixel for the other methods, replacing `--spp` and
+    /// Render in rounds until this much time has passed since the command started (e.g. `90s`, `1.5m`): passes
+    /// for `progressive`, `vcm`, `bdpt` and `lt`, samples per pixel for the other methods, replacing `--spp` and
     /// `--passes`. The summary says how many were done; the image equals a render of that many.
     #[arg(long, value_name = "TIME", value_parser = crate::bounded::parse_time)]
     pub(crate) time: Option<std::time::Duration>,
     /// Render in rounds until the estimated relative MSE (no reference needed) is at most this, e.g. `0.01`:
-    /// `path`, `direct` and `progressive` (whose estimate includes the gather radius's bias). With `--time`,
-    /// whichever comes first.
+    /// every method but `photon-map` and `final-gather` (the estimate of `progressive` and `vcm` includes the
+    /// gather radius's bias). With `--time`, whichever comes first.
     #[arg(long, value_name = "RELMSE", value_parser = crate::bounded::parse_target_error)]
     pub(crate) target_error: Option<f64>,
-    /// Rows per strip (default: about 16 strips per worker, at most 64 rows); for progressive photon mapping,
-    /// passes per whole-image block (default: about 16 blocks per worker).
+    /// Rows per strip (default: about 16 strips per worker, at most 64 rows); for `progressive`, `vcm`, `bdpt`
+    /// and `lt`, passes per whole-image block (default: about 16 blocks per worker).
     #[arg(long, value_name = "N")]
     pub(crate) rows_per_strip: Option<u32>,
     /// Folder of prepared blobs reused by later renders of an unchanged scene (default: $PHOTON_CACHE_DIR, else
@@ -251,11 +255,13 @@ pub(crate) struct SweepArgs {
     /// The reference image (EXR), e.g. from `photon-coordinator reference`.
     #[arg(long)]
     pub(crate) reference: PathBuf,
-    /// Methods, comma-separated: `path`, `direct`, `photon-map`, `final-gather`, `progressive`.
+    /// Methods, comma-separated: `path`, `direct`, `photon-map`, `final-gather`, `progressive`, `vcm`, `bdpt`,
+    /// `lt`.
     #[arg(long, value_delimiter = ',', default_value = "path,photon-map,final-gather,progressive")]
     pub(crate) methods: Vec<Integrator>,
     /// Budget multipliers b, comma-separated: path/direct render 4·b spp; photon-map traces 25 000·b global
-    /// photons (k fixed, 2 spp); final-gather 25 000·b global and caustic photons (2 spp); progressive 4·b passes.
+    /// photons (k fixed, 2 spp); final-gather 25 000·b global and caustic photons (2 spp); progressive, vcm, bdpt
+    /// and lt 4·b passes.
     #[arg(long, value_delimiter = ',', default_value = "1,2,4,8")]
     pub(crate) budget: Vec<u32>,
     /// Image width and height, e.g. `96x96`; must match the reference (default: the reference's size).

@@ -194,12 +194,12 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> 
     let Some(budget) = photon_core::prepare::budget::machine_memory() else { return Ok(()) };
     let (c, r) = (&scene.camera, &scene.render);
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    // Progressive photon mapping renders whole-image pass blocks; `--rows-per-strip` is then passes per block.
-    // So does a render bounded by time or error, in blocks of samples.
-    let rows = match r.integrator {
-        _ if bounded => c.height,
-        Integrator::Progressive => c.height,
-        _ => rows_per_strip.unwrap_or_else(|| crate::scheduler::rows_per_strip_for(c.height, 1)),
+    // The methods that render in passes (progressive, vcm, bdpt, lt) render whole-image pass blocks;
+    // `--rows-per-strip` is then passes per block. So does a render bounded by time or error, in blocks of samples.
+    let rows = if bounded || r.integrator.renders_passes() {
+        c.height
+    } else {
+        rows_per_strip.unwrap_or_else(|| crate::scheduler::rows_per_strip_for(c.height, 1))
     };
     let estimate = photon_core::prepare::budget::MemoryEstimate::job(c.width, c.height, rows, r, threads);
     tracing::info!(bytes = estimate.total(), budget, "memory estimate");
@@ -208,25 +208,26 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> 
 }
 
 /// The bound of `--time` and `--target-error`, if either is given, with the scene set up for it: its samples per
-/// pixel (or progressive passes) become the most a bounded render takes, the range its blocks are numbered in.
+/// pixel (or passes, for progressive, vcm, bdpt and lt) become the most a bounded render takes, the range its
+/// blocks are numbered in.
 /// Refuses `--target-error` for the methods whose error no number of samples lowers, and `--spp`/`--passes`.
 fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::bounded::Bound>> {
     if args.time.is_none() && args.target_error.is_none() {
         return Ok(None);
     }
     let r = &mut scene.render;
-    let progressive = r.integrator == Integrator::Progressive;
+    let in_passes = r.integrator.renders_passes();
     if args.spp.is_some() || args.passes.is_some() {
         bail!("--spp and --passes fix the samples; --time and --target-error choose them: give one or the other");
     }
     if args.target_error.is_some() && matches!(r.integrator, Integrator::PhotonMap | Integrator::FinalGather) {
         bail!(
             "--target-error needs an error that more samples lower; `{}` keeps the bias of its photon maps \
-             (their count is fixed before the render): use `progressive` or `path`, or bound it with --time",
+             (their count is fixed before the render): use `progressive`, `vcm` or `path`, or bound it with --time",
             r.integrator
         );
     }
-    if progressive {
+    if in_passes {
         r.photons.passes = crate::bounded::MAX_PASSES;
     } else {
         r.spp = crate::bounded::MAX_PASSES;
@@ -234,11 +235,20 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
     Ok(Some(crate::bounded::Bound {
         deadline: args.time.map(|t| t0 + t),
         target_error: args.target_error,
-        bias_alpha: progressive.then_some(r.photons.alpha),
+        // The gather (merge) radius of progressive photon mapping and vcm shrinks with α; bdpt and lt are unbiased.
+        bias_alpha: matches!(r.integrator, Integrator::Progressive | Integrator::Vcm).then_some(r.photons.alpha),
         passes: None,
         // The methods whose error more samples lower estimate it after every round, for the summary and the
         // live page, whether or not a target stops them.
-        estimate: matches!(r.integrator, Integrator::Path | Integrator::Direct | Integrator::Progressive),
+        estimate: matches!(
+            r.integrator,
+            Integrator::Path
+                | Integrator::Direct
+                | Integrator::Progressive
+                | Integrator::Vcm
+                | Integrator::Bdpt
+                | Integrator::Lt
+        ),
     }))
 }
 
@@ -349,14 +359,14 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     }
     // Decide on the scene as it stands (lights and materials do not depend on the method).
     let choice = sweep::choose_reference(&Prepared::new(&scene, &args.scene)?);
-    let budget = match choice.integrator {
-        Integrator::Progressive => Setting::Passes(args.passes),
-        _ => Setting::Spp(args.spp),
-    };
+    let budget = if choice.integrator.renders_passes() { Setting::Passes(args.passes) } else { Setting::Spp(args.spp) };
     let settings = [size.as_slice(), &[Setting::Integrator(choice.integrator), Setting::Seed(args.seed), budget]];
     let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
     let budget = match budget {
-        Setting::Passes(n) => format!("{n} passes of {} photon paths", scene.render.photons.pass_photons),
+        Setting::Passes(n) if choice.integrator == Integrator::Progressive => {
+            format!("{n} passes of {} photon paths", scene.render.photons.pass_photons)
+        }
+        Setting::Passes(n) => format!("{n} passes"),
         _ => format!("{} spp", args.spp),
     };
     fits_in_memory(&scene, None, false)?;
@@ -526,5 +536,32 @@ mod tests {
         assert_eq!(line, "photon-coordinator render 'my scene.toml' -o out.exr -q --resume out.exr.partial");
         let args = ["p", "--resume=x", "it's"];
         assert_eq!(resume_command(args.map(Into::into), Path::new("o")), "p 'it'\\''s' --resume o");
+    }
+
+    #[test]
+    fn the_methods_in_passes_parse_and_bound_their_passes() {
+        use clap::Parser as _;
+        let sweep = ["photon-coordinator", "sweep", "s.toml", "--reference", "r.exr", "--methods", "vcm,bdpt,lt"];
+        let Command::Sweep(args) = Cli::try_parse_from(sweep).unwrap().command else { unreachable!("a sweep") };
+        assert_eq!(args.methods, [Integrator::Vcm, Integrator::Bdpt, Integrator::Lt]);
+        let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nwidth = 8\nheight = 8\n";
+        let methods = [("progressive", true), ("vcm", true), ("bdpt", false), ("lt", false), ("path", false)];
+        for (method, biased) in methods {
+            let render = ["photon-coordinator", "render", "s.toml", "--integrator", method, "--time", "10s"];
+            let Command::Render(args) = Cli::try_parse_from(render).unwrap().command else { unreachable!("a render") };
+            let mut scene = Scene::parse(text, Path::new("s.toml")).unwrap();
+            scene.render.integrator = args.integrator.unwrap();
+            let (spp, passes) = (scene.render.spp, scene.render.photons.passes);
+            let b = bound(&args, &mut scene, Instant::now()).unwrap().unwrap();
+            let in_passes = scene.render.integrator.renders_passes();
+            let max = crate::bounded::MAX_PASSES;
+            assert_eq!(
+                (scene.render.spp, scene.render.photons.passes),
+                if in_passes { (spp, max) } else { (max, passes) },
+                "{method}"
+            );
+            assert_eq!(b.bias_alpha.is_some(), biased, "{method}");
+            assert!(b.estimate, "{method}");
+        }
     }
 }

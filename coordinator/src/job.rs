@@ -83,7 +83,8 @@ pub struct Job {
     /// The method reads photon maps and the job carries none: every worker traces them itself from the
     /// deterministic photon streams ([`crate::delivery`]).
     pub trace_photons: bool,
-    /// The pass count when the method is progressive photon mapping: the farm then hands out whole-image pass
+    /// The pass count when the method renders in passes (progressive, vcm, bdpt, lt: see
+    /// [`photon_core::scene::Integrator::renders_passes`]): the farm then hands out whole-image pass
     /// blocks ([`crate::scheduler::passes_per_block_for`]) instead of strips of rows.
     pub passes: Option<u32>,
     /// The workers pass big blobs among themselves (`--photon-maps peers`) instead of each receiving them
@@ -111,8 +112,7 @@ impl Job {
         let scene_blob = add(scene);
         let photons_blob = photons.map(&mut add);
         let texture_blobs = textures.into_iter().map(&mut add).collect();
-        let progressive = settings.integrator == photon_core::scene::Integrator::Progressive;
-        let passes = progressive.then_some(settings.photons.passes.max(1));
+        let passes = settings.integrator.renders_passes().then_some(settings.photons.passes.max(1));
         let trace_photons = settings.integrator.needs_photon_maps() && photons_blob.is_none();
         Self {
             scene_blob,
@@ -158,13 +158,13 @@ pub struct Partial {
     pub width: u32,
     /// Image height.
     pub height: u32,
-    /// The strip height the render used, or the passes per block for progressive photon mapping (a resumed
-    /// render cuts the work the same way).
+    /// The strip height the render used, or the passes per block for the methods that render in passes (a
+    /// resumed render cuts the work the same way).
     pub rows_per_strip: u32,
-    /// Finished strips: (first row, pixels of whole rows). For progressive photon mapping: (first pass of each
-    /// finished block, no pixels), their sums being in `pass_sums`.
+    /// Finished strips: (first row, pixels of whole rows). For the methods that render in passes: (first pass of
+    /// each finished block, no pixels), their sums being in `pass_sums`.
     pub strips: Vec<(u32, Vec<f32>)>,
-    /// Progressive photon mapping: the fixed-point sums of the finished blocks (3 per pixel, row-major).
+    /// The methods that render in passes: the fixed-point sums of the finished blocks (3 per pixel, row-major).
     pub pass_sums: Option<Vec<i128>>,
 }
 

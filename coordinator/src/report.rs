@@ -118,8 +118,8 @@ impl Summary<'_> {
     pub fn line(&self, outcome: &Outcome) -> String {
         let settings = self.settings;
         let (width, height) = self.size;
-        // Progressive photon mapping takes one camera sample per pass; the others take `spp`. A bounded render
-        // took as many as its completed rounds hold.
+        // The methods that render in passes (progressive, vcm, bdpt, lt) take one camera sample per pass; the
+        // others take `spp`. A bounded render took as many as its completed rounds hold.
         let ph = &settings.photons;
         let (spp, passes) = outcome.bounded.as_ref().map_or((settings.spp, ph.passes), |b| (b.passes, b.passes));
         let mut samples = match settings.integrator {
@@ -127,6 +127,14 @@ impl Summary<'_> {
                 "{passes} passes of {} photon paths ({} paths traced on the workers)",
                 ph.pass_photons, outcome.photon_paths
             ),
+            // One light subpath per pixel and pass; in a scene with media the passes are the volumetric path
+            // tracer's samples, and no light path is traced.
+            Integrator::Vcm | Integrator::Bdpt | Integrator::Lt if outcome.photon_paths == 0 && passes > 0 => {
+                format!("{passes} passes of path-traced samples (the scene has participating media)")
+            }
+            Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
+                format!("{passes} passes of {} light paths", u64::from(width) * u64::from(height))
+            }
             Integrator::PhotonMap | Integrator::FinalGather => match self.delivery {
                 Some(d) if d.mode == MapDelivery::Trace => {
                     format!("{spp} spp, photon maps {d}: {} paths traced on the workers", outcome.photon_paths)
@@ -142,7 +150,7 @@ impl Summary<'_> {
                 samples.push_str(&format!(" (estimated relMSE {e:.3e})"));
             }
         }
-        let units = if settings.integrator == Integrator::Progressive { "pass blocks" } else { "strips" };
+        let units = if settings.integrator.renders_passes() { "pass blocks" } else { "strips" };
         let mut extras =
             if outcome.resumed > 0 { format!(", {} {units} resumed", outcome.resumed) } else { String::new() };
         if let Some(h) = self.hits {

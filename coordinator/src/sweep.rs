@@ -23,7 +23,7 @@ use std::time::Instant;
 pub const BASE_SPP: u32 = 4;
 /// Global photon paths of `photon-map` and global and caustic photon paths of `final-gather` at budget 1.
 pub const BASE_PHOTONS: u32 = 25_000;
-/// Passes of `progressive` at budget 1.
+/// Passes of `progressive`, `vcm`, `bdpt` and `lt` at budget 1.
 pub const BASE_PASSES: u32 = 4;
 /// Samples per pixel of the photon-map methods, fixed across budgets: they only anti-alias the first hit, so the
 /// budget grows the photon count alone.
@@ -75,8 +75,8 @@ pub struct Budget {
 
 /// The settings that render with `method` at budget multiplier `b`: `path`/`direct` at `BASE_SPP·b` spp,
 /// `photon-map` with `BASE_PHOTONS·b` global photons (k unchanged), `final-gather` with `BASE_PHOTONS·b` global
-/// and caustic photons, `progressive` with `BASE_PASSES·b` passes. The photon methods render
-/// [`PHOTON_METHOD_SPP`] samples per pixel at every budget. Fails when a value overflows `u32`.
+/// and caustic photons, `progressive`, `vcm`, `bdpt` and `lt` with `BASE_PASSES·b` passes. The photon-map
+/// methods render [`PHOTON_METHOD_SPP`] samples per pixel at every budget. Fails when a value overflows `u32`.
 pub fn budget(method: Integrator, b: u32) -> Result<(Vec<Setting>, Budget)> {
     let times = |base: u32| base.checked_mul(b).with_context(|| format!("budget {b} × {base} overflows for {method}"));
     let grown = |parameter, value: u32| Budget { parameter, value: u64::from(value) };
@@ -94,7 +94,7 @@ pub fn budget(method: Integrator, b: u32) -> Result<(Vec<Setting>, Budget)> {
             let settings = vec![Setting::Spp(PHOTON_METHOD_SPP), Setting::GlobalPhotons(n), Setting::CausticPhotons(n)];
             (settings, grown("photons", n))
         }
-        Integrator::Progressive => {
+        Integrator::Progressive | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
             let passes = times(BASE_PASSES)?;
             (vec![Setting::Passes(passes)], grown("passes", passes))
         }
@@ -111,8 +111,8 @@ pub struct Timed {
     pub prepare_s: f64,
     /// Seconds to render the pixels.
     pub render_s: f64,
-    /// The relative MSE the render estimated of itself without a reference ([`crate::bounded`]): `path`,
-    /// `direct` and `progressive`.
+    /// The relative MSE the render estimated of itself without a reference ([`crate::bounded`]): every method
+    /// but `photon-map` and `final-gather`.
     pub estimated_rel_mse: Option<f64>,
 }
 
@@ -120,8 +120,8 @@ pub struct Timed {
 /// workers at `addrs`, as `render` does. The render time runs from the first connection to the last strip, so it
 /// includes shipping the blobs (workers that already hold them are sent nothing).
 ///
-/// `path`, `direct` and `progressive` render their samples (passes) in rounds of whole-image blocks that
-/// estimate their own error ([`crate::bounded`]); the image is the same, bit for bit, as in strips.
+/// Every method but `photon-map` and `final-gather` renders its samples (passes) in rounds of whole-image blocks
+/// that estimate their own error ([`crate::bounded`]); the image is the same, bit for bit, as in strips.
 pub async fn render_timed(
     scene: &Scene,
     scene_path: &Path,
@@ -137,7 +137,10 @@ pub async fn render_timed(
     let r = &prep.settings;
     let estimated = match r.integrator {
         Integrator::Path | Integrator::Direct => Some((r.spp, None)),
-        Integrator::Progressive => Some((r.photons.passes, Some(r.photons.alpha))),
+        // The merge radius of vcm shrinks with α as progressive photon mapping's gather radius does: both are
+        // biased; bdpt and lt are not.
+        Integrator::Progressive | Integrator::Vcm => Some((r.photons.passes, Some(r.photons.alpha))),
+        Integrator::Bdpt | Integrator::Lt => Some((r.photons.passes, None)),
         Integrator::PhotonMap | Integrator::FinalGather => None,
     };
     if let Some((passes, bias_alpha)) = estimated {
@@ -759,6 +762,11 @@ mod tests {
         let (s, b) = with_budget(&dir, Integrator::Progressive, 16);
         assert_eq!((b.value, s.photons.passes), (64, 64));
         assert_eq!(s.integrator, Integrator::Progressive);
+        for method in [Integrator::Vcm, Integrator::Bdpt, Integrator::Lt] {
+            let (s, b) = with_budget(&dir, method, 2);
+            assert_eq!(b, Budget { parameter: "passes", value: 8 }, "{method}");
+            assert_eq!((s.integrator, s.photons.passes), (method, 8));
+        }
         assert!(super::budget(Integrator::Path, u32::MAX).is_err());
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -114,4 +114,64 @@ impl Camera {
     pub fn eye(&self) -> Vec3A {
         self.eye
     }
+
+    /// The unit viewing direction.
+    pub fn forward(&self) -> Vec3A {
+        self.forward
+    }
+
+    /// A point on the lens for the 2D sample `u` (the eye for a pinhole): uniform over the lens disc, as
+    /// [`Camera::ray`] places its origins.
+    #[inline]
+    pub fn lens_point(&self, u: Vec2) -> Vec3A {
+        if self.lens_radius <= 0.0 {
+            return self.eye;
+        }
+        let l = crate::math::concentric_disk(u) * self.lens_radius;
+        self.eye + l.x * self.right + l.y * self.up
+    }
+
+    /// The film position (pixels, as [`Camera::ray`] takes it) of the ray that leaves lens point `o` in unit
+    /// direction `d`, and `cos θ = d · forward`; `None` when `d` does not point forwards or the position is off
+    /// the film. The inverse of [`Camera::ray`]: a thin lens sends every ray through the point where the pinhole
+    /// ray of its film position meets the plane of focus.
+    pub fn film_position(&self, o: Vec3A, d: Vec3A) -> Option<(Vec2, f32)> {
+        let cos = d.dot(self.forward);
+        if cos.is_nan() || cos <= 0.0 {
+            return None;
+        }
+        // The direction from the eye to where the ray meets the plane of focus (the ray itself for a pinhole),
+        // scaled to reach the image plane at distance 1.
+        let q = if self.lens_radius <= 0.0 {
+            d / cos
+        } else {
+            let focus_point = o + d * (self.focus / cos);
+            (focus_point - self.eye) / self.focus
+        };
+        let (sx, sy) = (q.dot(self.right), q.dot(self.up));
+        let film = Vec2::new(
+            (sx / self.half_w + 1.0) * 0.5 * self.width as f32,
+            (1.0 - sy / self.half_h) * 0.5 * self.height as f32,
+        );
+        let inside = film.x >= 0.0 && film.y >= 0.0 && film.x < self.width as f32 && film.y < self.height as f32;
+        (inside && film.is_finite()).then_some((film, cos))
+    }
+
+    /// The width of one pixel (scene units) on the plane of focus (the plane through `look_at` unless
+    /// `focus_distance` is set): the scale of detail the image resolves there.
+    pub fn pixel_footprint(&self) -> f32 {
+        2.0 * self.half_h * self.focus / self.height as f32
+    }
+
+    /// The solid-angle density, at a lens point, of the direction of a camera ray sampled uniformly within one
+    /// pixel, for a ray at `cos θ = cos` to the viewing direction: `1 / (A_pixel · cos³θ)`, with `A_pixel` the
+    /// pixel's area on the image plane at distance 1 (the image-plane density `1/A_pixel` turned into solid
+    /// angle by `d²/cos θ`, `d = 1/cos θ`). For a thin lens the plane of focus scales area and distance alike,
+    /// so the density is the same. This is the camera's importance per pixel, the `W_e` of light tracing
+    /// (Veach 1997, §10.2; pbrt-v4 §5.2.2, where the lens area cancels against its sampling density).
+    #[inline]
+    pub fn pixel_direction_pdf(&self, cos: f32) -> f32 {
+        let pixel_area = 4.0 * self.half_w * self.half_h / (self.width as f32 * self.height as f32);
+        1.0 / (pixel_area * cos * cos * cos)
+    }
 }

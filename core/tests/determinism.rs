@@ -42,8 +42,11 @@ fn threads_and_strips_do_not_change_a_pixel() {
 
 #[test]
 fn photon_methods_do_not_depend_on_strips_either() {
+    use photon_core::scene::Integrator;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
-    for integrator in [photon_core::scene::Integrator::Progressive, photon_core::scene::Integrator::PhotonMap] {
+    for integrator in
+        [Integrator::Progressive, Integrator::PhotonMap, Integrator::Vcm, Integrator::Bdpt, Integrator::Lt]
+    {
         let mut scene = Scene::load(&path).unwrap();
         scene.camera.width = 16;
         scene.camera.height = 12;

@@ -11,11 +11,15 @@ use std::ops::Range;
 use std::path::Path;
 
 fn cornell(passes: u32) -> Prepared {
+    cornell_with(Integrator::Progressive, passes)
+}
+
+fn cornell_with(integrator: Integrator, passes: u32) -> Prepared {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
     let mut scene = Scene::load(&path).unwrap();
     scene.camera.width = 20;
     scene.camera.height = 16;
-    scene.render.integrator = Integrator::Progressive;
+    scene.render.integrator = integrator;
     scene.render.photons.passes = passes;
     scene.render.photons.pass_photons = 3_000;
     Prepared::new(&scene, &path).unwrap()
@@ -46,6 +50,31 @@ fn any_cut_into_blocks_in_any_order_gives_the_same_image() {
         assert_eq!(bits(&acc.image()), bits(&whole.pixels), "blocks {cut:?}");
         assert_eq!(paths, whole.photon_paths, "blocks {cut:?}");
     }
+}
+
+/// vcm's iterations too: light subpaths, connections, merges and light-tracing splats, whatever the cut, and
+/// each iteration traces one light subpath per pixel once.
+#[test]
+fn vcm_iterations_in_any_cut_give_the_same_image() {
+    let passes = 5;
+    let prep = cornell_with(Integrator::Vcm, passes);
+    let (w, h) = (prep.camera.width, prep.camera.height);
+    let whole = render_image(&prep, &|_| {});
+    assert_eq!(whole.photon_paths, u64::from(passes * w * h));
+    assert!(whole.pixels.iter().any(|&v| v > 0.0));
+    for cut in [&[0..2, 2..5][..], &[4..5, 0..1, 1..4]] {
+        let mut acc = PassAccumulator::new(3 * (w * h) as usize, passes);
+        for block in cut {
+            let sums = render_passes(&prep, 0..h, block.clone(), &|_| true).unwrap();
+            check_sums(&sums.sums, block.len() as u32).unwrap();
+            acc.add(&sums.sums);
+        }
+        assert_eq!(bits(&acc.image()), bits(&whole.pixels), "blocks {cut:?}");
+    }
+    // Rows: splats from light subpaths land on any row, and a block over some rows keeps those that land there.
+    let all = render_passes(&prep, 0..h, 0..2, &|_| true).unwrap();
+    let part = render_passes(&prep, 5..9, 0..2, &|_| true).unwrap();
+    assert_eq!(part.sums[..], all.sums[3 * w as usize * 5..3 * w as usize * 9]);
 }
 
 #[test]

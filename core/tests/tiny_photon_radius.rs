@@ -9,7 +9,9 @@ use photon_core::render::render_image;
 use photon_core::scene::{Integrator, Scene, SceneError};
 use std::path::{Path, PathBuf};
 
-const PHOTON_METHODS: [Integrator; 3] = [Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive];
+/// The methods that gather photons, and `vcm`, which merges light vertices within the same radius.
+const PHOTON_METHODS: [Integrator; 4] =
+    [Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive, Integrator::Vcm];
 
 fn cornell(integrator: Integrator, radius: f32) -> (Scene, PathBuf) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
@@ -52,7 +54,7 @@ fn radius_below_the_floor_is_an_error_naming_the_field() {
 
 #[test]
 fn radius_is_not_checked_for_methods_that_do_not_gather() {
-    for integrator in [Integrator::Path, Integrator::Direct] {
+    for integrator in [Integrator::Path, Integrator::Direct, Integrator::Bdpt, Integrator::Lt] {
         let (scene, path) = cornell(integrator, 1e-30);
         assert!(Prepared::new(&scene, &path).is_ok(), "{integrator}");
     }

@@ -312,7 +312,7 @@ fn media_scenes_render_through_the_farm_with_every_method() {
     let (a, b) = (WorkerProcess::start(&["--threads", "1"]), WorkerProcess::start(&["--threads", "1"]));
     let farm = workers_arg(&[&a, &b]);
     for scene in ["fog.toml", "volume-caustic.toml"] {
-        for method in ["path", "direct", "photon-map", "final-gather", "progressive"] {
+        for method in ["path", "direct", "photon-map", "final-gather", "progressive", "vcm", "bdpt", "lt"] {
             let job = [
                 "--size",
                 "24x20",
@@ -343,4 +343,43 @@ fn media_scenes_render_through_the_farm_with_every_method() {
             assert!(bits(&there) == want, "{scene} {method}: the farm changed pixels");
         }
     }
+}
+
+/// `vcm` renders every shipped scene (`scenes/*.toml`, `scenes/stress/*.toml`, `scenes/rooms/*.toml`) through
+/// two workers, each pass's light subpaths traced once in the farm: the in-process bytes.
+#[test]
+fn vcm_renders_every_shipped_scene_through_the_farm() {
+    let dir = temp_dir("distributed", "vcm-scenes");
+    let (a, b) = (WorkerProcess::start(&["--threads", "1"]), WorkerProcess::start(&["--threads", "1"]));
+    let farm = workers_arg(&[&a, &b]);
+    let mut scenes = Vec::new();
+    for sub in ["", "stress", "rooms"] {
+        let folder = scenes_dir().join(sub);
+        for entry in std::fs::read_dir(&folder).unwrap() {
+            let path = entry.unwrap().path();
+            if path.extension().is_some_and(|e| e == "toml") {
+                scenes.push(path);
+            }
+        }
+    }
+    scenes.sort();
+    assert!(scenes.len() >= 16, "{} scenes found", scenes.len());
+    let mut lit = 0;
+    for scene in &scenes {
+        let job = ["--size", "20x16", "--passes", "2", "--integrator", "vcm", "--rows-per-strip", "4"];
+        let run = |out: &Path, extra: &[&str]| {
+            let mut cmd = Command::new(coordinator());
+            cmd.arg("render").arg(scene).arg("-o").arg(out).arg("-q").args(job).args(extra);
+            let o = run_with_timeout(&mut cmd, LIMIT);
+            assert!(o.status.success(), "{}: {}", scene.display(), text(&o));
+        };
+        let (here, there) = (dir.join("here.exr"), dir.join("farm.exr"));
+        run(&here, &[]);
+        run(&there, &["--workers", &farm]);
+        let want = bits(&here);
+        assert!(want.iter().all(|&v| f32::from_bits(v).is_finite()), "{}: a pixel is not finite", scene.display());
+        lit += usize::from(want.iter().any(|&v| f32::from_bits(v) > 0.0));
+        assert!(bits(&there) == want, "{}: the farm changed pixels", scene.display());
+    }
+    assert_eq!(lit, scenes.len(), "some scenes rendered black");
 }

@@ -121,13 +121,16 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
     let big = dir.join("big-mesh.toml");
     std::fs::write(&big, scene).unwrap();
     let big = big.to_string_lossy().into_owned();
-    let jobs: [(&str, &[&str]); 9] = [
+    let jobs: [(&str, &[&str]); 11] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
         // Checker, image (sRGB table), bump and normal maps: lookups, finite differences and tangent frames.
         ("textured.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("textured.toml", &["--size", "32x32", "--integrator", "progressive", "--passes", "2"]),
+        // Vertex connection and merging: light subpaths, connections, merges and light-tracing splats.
+        ("cornell.toml", &["--size", "32x24", "--integrator", "vcm", "--passes", "3"]),
+        ("rooms/cornell-spheres.toml", &["--size", "32x32", "--integrator", "vcm", "--passes", "2"]),
         // `join` keeps an absolute path as it is.
         (&big, &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         // Media: free flights, equiangular sampling, HG directions, transmittance (exp, log1p, atan2, tan),

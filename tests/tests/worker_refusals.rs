@@ -3,6 +3,7 @@
 
 #![allow(clippy::unwrap_used)]
 
+use photon_core::scene::Integrator;
 use photon_proto::pb::{self, render_client::RenderClient};
 use photon_tests::WorkerProcess;
 use tonic::Code;
@@ -121,7 +122,7 @@ async fn rows_outside_the_image_are_refused() {
     let mut scene = photon_core::scene::Scene::load(&path).unwrap();
     scene.camera.width = 8;
     scene.camera.height = 4;
-    scene.render.integrator = photon_core::scene::Integrator::Path; // a strip of rows, not a block of passes
+    scene.render.integrator = Integrator::Path; // a strip of rows, not a block of passes
     let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
     let blob = prep.encode_scene().unwrap();
     let id = photon_proto::blob_id(&blob);
@@ -162,7 +163,7 @@ async fn pass_blocks_are_checked_against_the_job() {
     scene.render.photons.pass_photons = 500;
     let w = WorkerProcess::start(&[]);
     let mut c = client(&w).await;
-    for integrator in [photon_core::scene::Integrator::Progressive, photon_core::scene::Integrator::Path] {
+    for integrator in [Integrator::Progressive, Integrator::Vcm, Integrator::Bdpt, Integrator::Lt, Integrator::Path] {
         scene.render.integrator = integrator;
         let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap();
         let blob = prep.encode_scene().unwrap();
@@ -177,7 +178,7 @@ async fn pass_blocks_are_checked_against_the_job() {
             pass_end: passes.1,
             ..Default::default()
         };
-        if integrator == photon_core::scene::Integrator::Progressive {
+        if integrator.renders_passes() {
             for bad in [(0, 0), (3, 2), (4, 6)] {
                 let e = c.render_strip(req(bad)).await.unwrap_err();
                 assert_eq!(e.code(), Code::OutOfRange, "{bad:?}");

@@ -54,7 +54,6 @@ use photon_core::prepare::blobs::Frame;
 use photon_core::prepare::budget::MemoryEstimate;
 use photon_core::render::progressive::{MAX_BLOCK_PASSES, render_passes};
 use photon_core::render::render_strip_with;
-use photon_core::scene::Integrator;
 use photon_proto::pb::render_server::{Render, RenderServer};
 use photon_proto::pb::{self, strip_event::Event};
 use photon_proto::transport::SERVED_AT_ONCE;
@@ -437,6 +436,8 @@ pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Fram
     }
     check_passes(r, &frame.settings)?;
     let mut estimate = MemoryEstimate::strip(width, r.row_end - r.row_start, &frame.settings, limits.threads);
+    // A pass of vcm, bdpt or lt traces the light subpaths of the whole image, whatever rows it renders.
+    estimate.light_paths = MemoryEstimate::light_paths(width, height, &frame.settings);
     if r.trace_photons {
         // Maps traced here are held here (received ones were bounded by the blob size limit on upload).
         estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
@@ -991,17 +992,18 @@ impl StripContext {
     }
 }
 
-/// Checks a request's passes against its frame: a block of photon passes for progressive photon mapping, of
-/// sample indices (within `render.spp`) for the other methods, or none (`0..0`: a strip of rows at `render.spp`
-/// samples per pixel; never for progressive photon mapping).
+/// Checks a request's passes against its frame: a block of passes (within `render.photons.passes`) for the
+/// methods that render in passes (progressive, vcm, bdpt, lt), of sample indices (within `render.spp`) for the
+/// other methods, or none (`0..0`: a strip of rows at `render.spp` samples per pixel; never for the methods
+/// that render in passes).
 fn check_passes(r: &pb::StripRequest, settings: &photon_core::scene::RenderSettings) -> Result<(), Status> {
-    let progressive = settings.integrator == Integrator::Progressive;
+    let in_passes = settings.integrator.renders_passes();
     let (start, end) = (r.pass_start, r.pass_end);
-    if !progressive && (start, end) == (0, 0) {
+    if !in_passes && (start, end) == (0, 0) {
         return Ok(());
     }
     let (total, what) =
-        if progressive { (settings.photons.passes, "passes") } else { (settings.spp, "samples per pixel") };
+        if in_passes { (settings.photons.passes, "passes") } else { (settings.spp, "samples per pixel") };
     if start >= end || end > total {
         return Err(Status::out_of_range(format!(
             "pass_start/pass_end {start}..{end}: expected a non-empty block within the job's {total} {what}"

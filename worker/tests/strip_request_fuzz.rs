@@ -133,6 +133,7 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
                 assert!(r.row_start < r.row_end && r.row_end <= h, "case {case}: rows {}..{}", r.row_start, r.row_end);
                 let rows = r.row_end - r.row_start;
                 let mut estimate = MemoryEstimate::strip(w, rows, &frame.settings, limits.threads);
+                estimate.light_paths = MemoryEstimate::light_paths(w, h, &frame.settings);
                 if r.trace_photons {
                     estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
                 }
@@ -147,7 +148,7 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
                 let maps = usize::from(!r.photons_blob.is_empty()) + usize::from(r.trace_photons);
                 assert_eq!(usize::from(frame.settings.integrator.needs_photon_maps()), maps, "case {case}");
                 let passes = r.pass_start..r.pass_end;
-                if frame.settings.integrator == photon_core::scene::Integrator::Progressive {
+                if frame.settings.integrator.renders_passes() {
                     assert!(!passes.is_empty() && passes.end <= frame.settings.photons.passes, "case {case}");
                 } else {
                     // A strip at the frame's samples per pixel, or a block of its sample indices.

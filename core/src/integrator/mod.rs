@@ -6,6 +6,7 @@
 //! | `photon-map` | [`photon_map`] | the global photon map seen at the first non-delta surface |
 //! | `final-gather` | [`final_gather`] | shadow rays + caustic map + final gathering of the global map |
 //! | `progressive` | `render::progressive` | per-pixel statistics over passes: a strip-level method, not per ray |
+//! | `vcm`, `bdpt`, `lt` | `render::vcm` | light and camera subpaths joined by connections and merges, per pass |
 //!
 //! A scene with participating media (or an `interface` material) takes [`volume`]'s paths instead: the
 //! volumetric path tracer for `path` and `direct`, and the media-aware walk ([`visible_point_in`]) for the photon
@@ -34,14 +35,18 @@ use glam::Vec3A;
 
 /// Radiance arriving along `ray`, by the integrator of the prepared job's settings. Counts every traced ray in
 /// `rays`. Progressive photon mapping is not a per-ray method: `render::progressive` runs its passes and calls
-/// [`visible_point`] instead; here it gives direct light only.
+/// [`visible_point`] instead; here it gives direct light only. Nor are `vcm`, `bdpt` and `lt`, whose pass
+/// renderer traces its own light and camera subpaths; here they trace full paths as `path` does, which is what
+/// that renderer falls back to in a scene with media (through [`volume::li`]), one camera sample per pass.
 pub fn li(prep: &Prepared, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
     let settings = &prep.settings;
     if let Some(media) = &prep.media {
         return volume::li(prep, media, ray, s, rays);
     }
     match settings.integrator {
-        Integrator::Path => path::li(prep, settings.max_depth, ray, s, rays, false),
+        Integrator::Path | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
+            path::li(prep, settings.max_depth, ray, s, rays, false)
+        }
         Integrator::Direct | Integrator::Progressive => path::li(prep, settings.max_depth, ray, s, rays, true),
         Integrator::PhotonMap | Integrator::FinalGather => match &prep.photons {
             Some(maps) => photon_map::li(prep, maps, ray, s, rays),

@@ -35,6 +35,8 @@ pub enum Domain {
     Photon = 2,
     /// One progressive photon-mapping pass.
     Pass = 3,
+    /// One light subpath of vertex connection and merging (and of bidirectional path tracing, light tracing).
+    LightSubpath = 4,
 }
 
 /// Points per scrambled Sobol sequence: the index has 16 bits.

@@ -16,9 +16,9 @@ pub const IMAGE_BYTES_PER_PIXEL: u64 = 36;
 /// chunked events that carry them (12).
 pub const STRIP_BYTES_PER_PIXEL: u64 = 36;
 
-/// Bytes per pixel of progressive photon mapping's pass sums in one place: the fixed-point sums of a block
-/// (3 × i64 = 24) and their wire bytes (24) on a worker, or the whole render's sums (3 × i128 = 48) on the
-/// coordinator.
+/// Bytes per pixel of the pass sums of the methods that render in passes (progressive, vcm, bdpt, lt) in one
+/// place: the fixed-point sums of a block (3 × i64 = 24) and their wire bytes (24) on a worker, or the whole
+/// render's sums (3 × i128 = 48) on the coordinator.
 pub const PROGRESSIVE_BYTES_PER_PIXEL: u64 = 48;
 
 /// Photon-map bytes a worker may hold at once while it traces progressive passes side by side.
@@ -26,10 +26,22 @@ pub const PASS_MAPS_AT_ONCE_BYTES: u64 = 1 << 29;
 
 /// How many progressive passes a worker traces side by side with `threads` threads: as many as the threads,
 /// while their maps (about 96 bytes per photon path) stay within [`PASS_MAPS_AT_ONCE_BYTES`], and at least one.
+/// For progressive photon mapping only: its passes hold `pass_photons` paths each, while vcm, bdpt and lt trace
+/// one pass at a time, one light subpath per pixel ([`MemoryEstimate::light_paths`]).
 pub fn passes_at_once(pass_photons: u32, threads: usize) -> u32 {
     let per_map = (u64::from(pass_photons) * 96).max(1);
     (PASS_MAPS_AT_ONCE_BYTES / per_map).clamp(1, threads.max(1) as u64) as u32
 }
+
+/// Bytes of one stored light-subpath vertex of vcm and bdpt (a point and its error bound, the BSDF there, the
+/// direction, the throughput and the MIS quantities: 224 bytes).
+pub const LIGHT_VERTEX_BYTES: u64 = 224;
+
+/// Bytes of one light-tracing contribution of vcm, bdpt and lt (a pixel index and a colour, aligned: 32 bytes).
+pub const SPLAT_BYTES: u64 = 32;
+
+/// Bytes per vertex of vcm's merge index (a kd-tree of the vertices' positions and indices).
+pub const MERGE_TREE_BYTES_PER_VERTEX: u64 = 24;
 
 /// Photons stored per emitted path, an upper bound for scenes of usual albedo (Russian roulette ends a path
 /// after 1/(1 − albedo) bounces on average: 3.3 at albedo 0.7).
@@ -50,7 +62,11 @@ pub struct MemoryEstimate {
     pub photon_maps: u64,
     /// The progressive passes' photon maps traced side by side while a block renders ([`passes_at_once`]).
     pub pass_map: u64,
-    /// Progressive photon mapping's pass sums: a block's on a worker, the whole render's on the coordinator.
+    /// vcm, bdpt and lt: what one pass's light subpaths hold, one subpath per pixel of the whole image
+    /// ([`MemoryEstimate::light_paths`]).
+    pub light_paths: u64,
+    /// The pass sums of the methods that render in passes ([`Integrator::renders_passes`]): a block's on a
+    /// worker, the whole render's on the coordinator.
     pub progressive: u64,
     /// The k-nearest buffers of every render thread.
     pub k_nearest: u64,
@@ -92,7 +108,7 @@ impl MemoryEstimate {
     pub fn job(width: u32, height: u32, strip_rows: u32, settings: &RenderSettings, threads: usize) -> Self {
         let strip = Self::strip(width, strip_rows.min(height), settings, threads);
         // The coordinator adds the blocks' sums into its own (a block as it arrives is counted in `strip`).
-        let sums = if settings.integrator == Integrator::Progressive {
+        let sums = if settings.integrator.renders_passes() {
             pixels(width, height).saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL)
         } else {
             0
@@ -100,6 +116,7 @@ impl MemoryEstimate {
         Self {
             image: pixels(width, height).saturating_mul(IMAGE_BYTES_PER_PIXEL).saturating_add(strip.image),
             photon_maps: Self::photon_maps(settings),
+            light_paths: Self::light_paths(width, height, settings),
             progressive: strip.progressive.saturating_add(sums),
             ..strip
         }
@@ -111,17 +128,45 @@ impl MemoryEstimate {
         let paths = match settings.integrator {
             Integrator::PhotonMap => u64::from(settings.photons.global),
             Integrator::FinalGather => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
-            Integrator::Path | Integrator::Direct | Integrator::Progressive => 0,
+            Integrator::Path
+            | Integrator::Direct
+            | Integrator::Progressive
+            | Integrator::Vcm
+            | Integrator::Bdpt
+            | Integrator::Lt => 0,
         };
         paths.saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON)
     }
 
+    /// The bytes one pass of vcm, bdpt or lt holds for its light subpaths, one per pixel of a `width` × `height`
+    /// image (0 for the other methods). Passes run one at a time, and each traces the subpaths of the whole
+    /// image whatever rows it renders. Per subpath, [`PHOTONS_PER_PATH`] vertices: vcm and bdpt store each
+    /// vertex for the camera subpaths to connect to (vcm also indexes them for merging), and every vertex may
+    /// leave a light-tracing splat; vertices and splats are gathered in parallel chunks and then joined, so
+    /// they are counted twice. lt stores no vertex, only its splats.
+    pub fn light_paths(width: u32, height: u32, settings: &RenderSettings) -> u64 {
+        let per_vertex = match settings.integrator {
+            Integrator::Vcm => 2 * (LIGHT_VERTEX_BYTES + SPLAT_BYTES) + MERGE_TREE_BYTES_PER_VERTEX,
+            Integrator::Bdpt => 2 * (LIGHT_VERTEX_BYTES + SPLAT_BYTES),
+            Integrator::Lt => 2 * SPLAT_BYTES,
+            _ => return 0,
+        };
+        // Each subpath's end index (4 bytes), also joined from the chunks.
+        pixels(width, height).saturating_mul(PHOTONS_PER_PATH * per_vertex + 8)
+    }
+
     /// One strip of `rows` rows of an image `width` pixels wide on a worker with `threads` render threads (the
-    /// photon maps are not counted: they arrived as a blob whose size the worker already limits).
+    /// photon maps are not counted: they arrived as a blob whose size the worker already limits). For vcm, bdpt
+    /// and lt, `light_paths` counts the subpaths of `width` × `rows` pixels, those of a whole-image pass block;
+    /// a caller with a block of fewer rows sets it from the image's size ([`MemoryEstimate::light_paths`]).
     pub fn strip(width: u32, rows: u32, settings: &RenderSettings, threads: usize) -> Self {
         let px = pixels(width, rows);
         let progressive = settings.integrator == Integrator::Progressive;
+        // vcm merges within a fixed radius: no k-nearest buffers.
         let gathers = settings.integrator.needs_photon_maps() || progressive;
+        // vcm, bdpt and lt also keep each pass's sums apart before adding them in (3 × i64 per pixel).
+        let pass_copy =
+            if matches!(settings.integrator, Integrator::Vcm | Integrator::Bdpt | Integrator::Lt) { 24 } else { 0 };
         Self {
             image: px.saturating_mul(STRIP_BYTES_PER_PIXEL),
             photon_maps: 0,
@@ -132,7 +177,12 @@ impl MemoryEstimate {
             } else {
                 0
             },
-            progressive: if progressive { px.saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL) } else { 0 },
+            light_paths: Self::light_paths(width, rows, settings),
+            progressive: if settings.integrator.renders_passes() {
+                px.saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL + pass_copy)
+            } else {
+                0
+            },
             k_nearest: if gathers {
                 u64::from(settings.photons.k).saturating_mul(BYTES_PER_NEIGHBOUR).saturating_mul(threads as u64)
             } else {
@@ -143,7 +193,7 @@ impl MemoryEstimate {
 
     /// The sum of the parts.
     pub fn total(&self) -> u64 {
-        [self.image, self.photon_maps, self.pass_map, self.progressive, self.k_nearest]
+        [self.image, self.photon_maps, self.pass_map, self.light_paths, self.progressive, self.k_nearest]
             .iter()
             .fold(0u64, |a, &b| a.saturating_add(b))
     }
@@ -159,6 +209,7 @@ impl MemoryEstimate {
             (self.image, Part::Image),
             (self.photon_maps, Part::PhotonMaps),
             (self.pass_map, Part::PassMap),
+            (self.light_paths, Part::LightPaths),
             (self.progressive, Part::Progressive),
             (self.k_nearest, Part::KNearest),
         ];
@@ -181,6 +232,7 @@ enum Part {
     Image,
     PhotonMaps,
     PassMap,
+    LightPaths,
     Progressive,
     KNearest,
 }
@@ -191,6 +243,7 @@ impl Part {
             Part::Image => "camera.width × camera.height",
             Part::PhotonMaps => "render.photons.global",
             Part::PassMap => "render.photons.pass_photons",
+            Part::LightPaths => "camera.width × camera.height",
             Part::Progressive => "camera.width",
             Part::KNearest => "render.photons.k",
         }
@@ -201,7 +254,8 @@ impl Part {
             Part::Image => "pixels",
             Part::PhotonMaps => "photon maps",
             Part::PassMap => "progressive passes' photons",
-            Part::Progressive => "progressive pass sums",
+            Part::LightPaths => "a pass's light subpaths",
+            Part::Progressive => "pass sums",
             Part::KNearest => "k-nearest buffers",
         }
     }
@@ -211,7 +265,7 @@ impl Part {
     fn fits(self, scale: f64, width: u32, height: u32, settings: &RenderSettings) -> String {
         let times = |v: u32| (f64::from(v) * scale) as u64;
         match self {
-            Part::Image => {
+            Part::Image | Part::LightPaths => {
                 let s = scale.sqrt();
                 let (w, h) = ((f64::from(width) * s) as u32, (f64::from(height) * s) as u32);
                 format!("an image of about {w} × {h} pixels would fit")
@@ -268,6 +322,24 @@ mod tests {
         settings.photons.pass_photons = u32::MAX;
         let err = MemoryEstimate::strip(64, 1, &settings, 8).check(8 << 30, 64, 1, &settings).unwrap_err();
         assert_eq!(err.setting, "render.photons.pass_photons");
+    }
+
+    #[test]
+    fn methods_in_passes_count_their_sums_and_light_subpaths() {
+        for integrator in Integrator::ALL {
+            let settings = RenderSettings { integrator, ..Default::default() };
+            let e = MemoryEstimate::strip(64, 48, &settings, 8);
+            assert_eq!(e.progressive > 0, integrator.renders_passes(), "{integrator}");
+            let light = matches!(integrator, Integrator::Vcm | Integrator::Bdpt | Integrator::Lt);
+            assert_eq!(e.light_paths > 0, light, "{integrator}");
+            assert_eq!(e.pass_map > 0, integrator == Integrator::Progressive, "{integrator}");
+        }
+        // One light subpath per pixel: the image size is the setting to change.
+        let settings = RenderSettings { integrator: Integrator::Vcm, ..Default::default() };
+        let e = MemoryEstimate::strip(8192, 8192, &settings, 8);
+        let err = e.check(8 << 30, 8192, 8192, &settings).unwrap_err();
+        assert_eq!(err.setting, "camera.width × camera.height", "{err}");
+        assert!(err.to_string().contains("light subpaths"), "{err}");
     }
 
     #[test]

@@ -57,6 +57,14 @@ impl Prepared {
         check_photon_radius(scene, &geometry, scene_path)?;
         let lights = lights(scene, &mut geometry, &emitters);
         let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
+        if media.is_some() && matches!(scene.render.integrator, Integrator::Vcm | Integrator::Bdpt | Integrator::Lt) {
+            tracing::warn!(
+                "{}: {}'s subpaths do not cross participating media; its passes are the volumetric path tracer's \
+                 samples",
+                scene_path.display(),
+                scene.render.integrator
+            );
+        }
         Ok(Self {
             camera: Camera::new(&scene.camera),
             geometry,
@@ -73,6 +81,15 @@ impl Prepared {
     /// the bounded primitives (1 unit for a scene of planes only).
     pub fn photon_radius(&self) -> f32 {
         self.settings.photons.radius.unwrap_or_else(|| 0.02 * scene_size(&self.geometry))
+    }
+
+    /// The first merging radius of vertex connection and merging, in scene units: `render.photons.radius`, or
+    /// the width of one pixel on the plane of focus ([`crate::camera::Camera::pixel_footprint`]). Merges
+    /// estimate the density of light vertices per pixel, and a camera subpath meets `width × height` light
+    /// subpaths per iteration: a pixel's footprint holds a few of their vertices (Georgiev et al. 2012, §7,
+    /// use a radius of that order).
+    pub fn merge_radius(&self) -> f32 {
+        self.settings.photons.radius.unwrap_or_else(|| self.camera.pixel_footprint())
     }
 
     /// The radiance estimator of the photon settings.
@@ -123,10 +140,11 @@ fn scene_size(geometry: &Geometry) -> f32 {
 }
 
 /// Rejects a `render.photons.radius` below [`MIN_RELATIVE_PHOTON_RADIUS`] of the scene's size, for the methods
-/// that gather photons. Validation cannot do it: it does not know the scene's size before meshes are loaded.
+/// that gather photons (vcm merges light vertices within this radius). Validation cannot do it: it does not know
+/// the scene's size before meshes are loaded.
 fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::path::Path) -> Result<(), SceneError> {
-    let uses_photons =
-        scene.render.integrator.needs_photon_maps() || scene.render.integrator == Integrator::Progressive;
+    let uses_photons = scene.render.integrator.needs_photon_maps()
+        || matches!(scene.render.integrator, Integrator::Progressive | Integrator::Vcm);
     let Some(radius) = scene.render.photons.radius else { return Ok(()) };
     let size = scene_size(geometry);
     let floor = MIN_RELATIVE_PHOTON_RADIUS * size;

@@ -13,13 +13,13 @@
 //! `K` samples rendered as sample blocks on many workers ([`progressive::render_passes`]) give the same bits.
 
 pub mod progressive;
+pub mod vcm;
 
 use crate::Rgb;
 use crate::integrator::li;
 use crate::math::Ray;
 use crate::math::rng::Sampler;
 use crate::prepare::Prepared;
-use crate::scene::Integrator;
 use glam::Vec2;
 use rayon::prelude::*;
 use std::ops::Range;
@@ -55,7 +55,7 @@ pub fn render_strip(prep: &Prepared, rows: Range<u32>, progress: &(dyn Fn(u32) +
 /// number of rows finished so far and returns `false` to cancel; a cancelled render returns `None` soon after
 /// (rows already started finish first).
 pub fn render_strip_with(prep: &Prepared, rows: Range<u32>, progress: &(dyn Fn(u32) -> bool + Sync)) -> Option<Strip> {
-    if prep.settings.integrator == Integrator::Progressive {
+    if prep.settings.integrator.renders_passes() {
         return progressive::render_strip(prep, rows, progress);
     }
     let width = prep.camera.width;

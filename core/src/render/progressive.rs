@@ -61,7 +61,7 @@ pub fn pass_radius2(r0: f32, alpha: f32, pass: u32) -> f32 {
 /// block pays for the passes before it once, not once per pass. Each step multiplies in the same order as the
 /// whole product, so every value is bit for bit [`pass_radius2`]'s.
 #[derive(Clone, Copy, Debug)]
-struct RadiusSequence {
+pub(super) struct RadiusSequence {
     r0: f64,
     alpha: f64,
     pass: u32,
@@ -70,17 +70,17 @@ struct RadiusSequence {
 }
 
 impl RadiusSequence {
-    fn at(r0: f32, alpha: f32, pass: u32) -> Self {
+    pub(super) fn at(r0: f32, alpha: f32, pass: u32) -> Self {
         let start = Self { r0: f64::from(r0), alpha: f64::from(alpha), pass: 0, ratio: 1.0 };
         (0..pass).fold(start, |s, _| s.next())
     }
 
-    fn next(self) -> Self {
+    pub(super) fn next(self) -> Self {
         let i = f64::from(self.pass + 1);
         Self { pass: self.pass + 1, ratio: self.ratio * ((i + self.alpha) / (i + 1.0)), ..self }
     }
 
-    fn r2(&self) -> f32 {
+    pub(super) fn r2(&self) -> f32 {
         (self.r0 * self.r0 * self.ratio) as f32
     }
 }
@@ -179,6 +179,11 @@ pub fn render_passes(
     progress: &(dyn Fn(u32) -> bool + Sync),
 ) -> Option<PassSums> {
     let passes = passes.start..passes.end.min(passes.start.saturating_add(MAX_BLOCK_PASSES));
+    if let Some(techniques) = super::vcm::Techniques::of(prep.settings.integrator)
+        && prep.media.is_none()
+    {
+        return super::vcm::render_passes(prep, techniques, rows, passes, progress);
+    }
     if prep.settings.integrator != crate::scene::Integrator::Progressive {
         return super::render_sample_block(prep, rows, passes, progress);
     }

@@ -64,12 +64,29 @@ pub enum Integrator {
     /// each gathering with a radius that shrinks with the pass index; consistent, it converges to the path
     /// tracer's answer, and its passes spread over the farm.
     Progressive,
+    /// Vertex connection and merging (Georgiev et al. 2012): bidirectional path tracing whose connections and
+    /// photon merges are weighted by multiple importance sampling; iterations of fresh light subpaths with a
+    /// shrinking merging radius, spread over the farm like progressive passes.
+    Vcm,
+    /// Bidirectional path tracing: [`Integrator::Vcm`] without merging (unbiased).
+    Bdpt,
+    /// Light tracing: [`Integrator::Vcm`]'s light subpaths connected to the camera only (unbiased; sees no
+    /// light through mirror or glass in front of the camera).
+    Lt,
 }
 
 impl Integrator {
     /// Every integrator, in the order the documentation lists them.
-    pub const ALL: [Integrator; 5] =
-        [Integrator::Path, Integrator::Direct, Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive];
+    pub const ALL: [Integrator; 8] = [
+        Integrator::Path,
+        Integrator::Direct,
+        Integrator::PhotonMap,
+        Integrator::FinalGather,
+        Integrator::Progressive,
+        Integrator::Vcm,
+        Integrator::Bdpt,
+        Integrator::Lt,
+    ];
 
     /// The name used in scene files and on the command line.
     pub fn name(self) -> &'static str {
@@ -79,7 +96,17 @@ impl Integrator {
             Integrator::PhotonMap => "photon-map",
             Integrator::FinalGather => "final-gather",
             Integrator::Progressive => "progressive",
+            Integrator::Vcm => "vcm",
+            Integrator::Bdpt => "bdpt",
+            Integrator::Lt => "lt",
         }
+    }
+
+    /// Whether the method renders in whole-image passes (iterations) rather than pixel samples: each pass
+    /// traces its own light paths, which may reach any pixel, so the farm hands out blocks of passes over the
+    /// whole image (`render.photons.passes` of them) instead of strips of samples.
+    pub fn renders_passes(self) -> bool {
+        matches!(self, Integrator::Progressive | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt)
     }
 
     /// Whether this method needs photon maps built before rendering.

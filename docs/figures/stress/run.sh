@@ -16,7 +16,8 @@
 # References use another seed than the method renders, so a progressive render is not correlated with the
 # progressive reference's first passes.
 #
-# Environment: SCENES (the scene files, default as above), CSV (default docs/figures/stress/results.csv), PHOTON_BIN
+# Environment: SCENES (the scene files, default as above), METHODS (default: the five above; vcm and bdpt
+# are known too, at 256 passes: `METHODS="vcm bdpt" CSV=docs/figures/stress/vcm.csv`), CSV (default docs/figures/stress/results.csv), PHOTON_BIN
 # (default target/release/photon-coordinator, built here if absent), SIZE (96x96),
 # THREADS (2), REF_SPP (2048), REF_PASSES (256), LIMIT (90: seconds before a render is stopped and recorded
 # as a render-error; large-radius's radius-1 gathers take minutes each).
@@ -43,13 +44,17 @@ trap 'rm -rf "$tmp"' EXIT
 
 # The five methods at the budget under test. photon-map, final-gather and progressive use each scene's own
 # photon settings (map sizes, k, radius, pass_photons); final-gather's gather rays are set to 16.
-methods=(path direct photon-map final-gather progressive)
+# vcm's rows (METHODS=vcm) are run at 256 passes, enough for its mean to be held against the reference's.
+# shellcheck disable=SC2206  # the list is meant to split
+methods=(${METHODS:-path direct photon-map final-gather progressive})
 declare -A budget=(
     [path]="--spp 16"
     [direct]="--spp 16"
     [photon-map]="--spp 4"
     [final-gather]="--spp 2 --set render.photons.final_gather_rays=16"
     [progressive]="--passes 16"
+    [vcm]="--passes 256"
+    [bdpt]="--passes 256"
 )
 
 # render NAME ARGS...: renders to $tmp/NAME.exr; sets `prep` and `secs` from the summary line

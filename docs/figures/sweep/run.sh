@@ -40,12 +40,14 @@ for s in "${@:-cornell caustic fog volume-caustic}"; do
       fog) sweep fog scenes/fog.toml 96x96 --spp 4096 -- --methods "path,direct,photon-map,final-gather,progressive" ;;
       # The volume caustic: only photon methods render it, so the reference is progressive photon mapping.
       volume-caustic) sweep volume-caustic scenes/volume-caustic.toml 96x72 --passes 1024 -- --methods "$methods" ;;
-      # The Mitsuba rooms at their own 256×256, budgets from under 1 s to about 50 s a render (progressive at b = 128: 47 s); the references are
-      # the path tracer's (an area light: every path can be found from the camera), about 5 minutes each.
-      rooms-boxes) BUDGET=1,2,4,8,16,32,64,128 sweep rooms-boxes scenes/rooms/cornell-boxes.toml 256x256 --spp 8192 -- \
-        --methods path,final-gather,progressive ;;
-      rooms-spheres) BUDGET=1,2,4,8,16,32,64,128 sweep rooms-spheres scenes/rooms/cornell-spheres.toml 256x256 \
-        --spp 8192 -- --methods path,final-gather,progressive ;;
+      # The Mitsuba rooms at their own 256×256 with vcm beside the others, budgets from under 1 s to about 30 s
+      # for the path tracer (b = 256) and a few minutes for vcm (1024 passes); the references are the path
+      # tracer's (an area light: every path can be found from the camera), about 5 minutes each. About 20
+      # minutes a room on 2 idle cores.
+      rooms-boxes) BUDGET=1,2,4,8,16,32,64,128,256 sweep rooms-boxes scenes/rooms/cornell-boxes.toml 256x256 \
+        --spp 8192 -- --methods path,final-gather,progressive,vcm ;;
+      rooms-spheres) BUDGET=1,2,4,8,16,32,64,128,256 sweep rooms-spheres scenes/rooms/cornell-spheres.toml 256x256 \
+        --spp 8192 -- --methods path,final-gather,progressive,vcm ;;
       *) echo "unknown sweep $name" >&2; exit 2 ;;
     esac
   done

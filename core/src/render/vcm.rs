@@ -1,0 +1,762 @@
+//! `vcm`, `bdpt` and `lt`: vertex connection and merging (Georgiev, Křivánek, Davidovič & Slusallek 2012,
+//! "Light Transport Simulation with Vertex Connection and Merging", ACM TOG 31(6); the same method as
+//! Hachisuka, Pantaleoni & Jensen 2012, "A Path Space Extension for Robust Light Transport Simulation"), and
+//! the two methods that are settings of it: bidirectional path tracing (connections only; Veach 1997, ch. 10)
+//! and light tracing (light subpaths connected to the camera only).
+//!
+//! # An iteration
+//! Iteration (pass) `p` is numbered over the whole render, like a progressive photon-mapping pass, and is
+//! traced exactly once in the whole farm:
+//! 1. `N = width × height` light subpaths, subpath `j` from the stream `(seed, LightSubpath, p, j)`: a light
+//!    chosen by power, a point and direction on it, then BSDF sampling with Russian roulette. Every vertex with a
+//!    non-delta lobe is stored and connected to the camera (light tracing); the connection lands on any pixel.
+//! 2. The stored vertices are indexed by a kd-tree for merging.
+//! 3. Camera subpath of pixel `(x, y)` is its camera sample `p` (the stream of every other method). At each
+//!    vertex with a non-delta lobe it adds: next-event estimation (a light chosen by power, a point on it),
+//!    connections to every vertex of light subpath `j = y·width + x`, and merges with every stored light vertex
+//!    within the radius `r_p`; emission found by the camera subpath is added too.
+//!
+//! Each path so found is weighted by the power heuristic over every technique that could have sampled it —
+//! each split of it into a light and a camera subpath, joined by a connection or by a merge — using
+//! Georgiev's recursive quantities `dVCM`, `dVC`, `dVM` carried along each subpath ("Implementing Vertex
+//! Connection and Merging", technical report, Saarland University 2012, eqs. 31–55; we follow its numbering in
+//! the comments). A merge is the photon-map estimate with the photon maps' kernel (`render.photons.kernel`)
+//! at radius `r_p`, with acceptance probability `π r² p_A` in the weights (the report's `η_VCM = π r² N`).
+//!
+//! The radius shrinks as progressive photon mapping's (Knaus & Zwicker 2011, eq. 15): `r_p² = r_0² ·
+//! Π (i + α)/(i + 1)`, `r_0` = [`Prepared::merge_radius`] (by default one pixel's width at the focus distance), `α = render.photons.alpha`, so merging's bias vanishes
+//! and the method is consistent; `bdpt` and `lt` are unbiased.
+//!
+//! Russian roulette at a vertex continues with probability `q = min(1, max albedo)`, a property of the vertex
+//! (our BSDFs' albedos do not depend on direction), so the same `q` enters the forward and reverse densities
+//! and the weights stay exact. Area conversions of densities use the geometric normal; throughputs the shading
+//! cosine and, on light subpaths, the adjoint BSDF (Veach 1997, §5.3).
+//!
+//! # Exact sums
+//! Every pixel's estimate of a pass is one fixed-point value, as for progressive photon mapping: the camera
+//! subpath's radiance rounded once, plus each light-tracing contribution that landed there rounded once, added
+//! as integers (so in any order), clamped to `[0, MAX_PASS_SUM]`. The image therefore depends only on (scene,
+//! seed, passes), never on the farm's cut, the workers or the threads.
+//!
+//! # What it does not do
+//! Scenes with participating media (or an `interface` material) are rendered by the volumetric path tracer,
+//! one camera sample per pass: the subpaths here do not cross media. Light tracing (`lt`) sees nothing through
+//! mirror or glass directly in front of the camera, as no light subpath can connect there.
+
+use super::progressive::{MAX_PASS_SUM, PassSums, RadiusSequence, to_fixed};
+use crate::Rgb;
+use crate::geometry::{Hit, NONE};
+use crate::integrator::unoccluded;
+use crate::light::Light;
+use crate::material::bsdf::{Bsdf, TransportMode};
+use crate::math::rng::{Domain, Sampler};
+use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
+use crate::photon::Kernel;
+use crate::prepare::Prepared;
+use crate::scene::Integrator;
+use glam::Vec3A;
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use rayon::prelude::*;
+use std::f32::consts::{FRAC_1_PI, PI};
+use std::ops::Range;
+use std::time::Instant;
+
+/// Light subpaths traced per parallel chunk (fixed, so the vertex order does not depend on the thread pool).
+const CHUNK: usize = 1024;
+
+/// The multiple-importance heuristic's exponent applied to a density (or a ratio of densities): the power
+/// heuristic with β = 2 (Veach 1997, §9.2.4), the path tracer's.
+#[inline]
+fn mis(x: f32) -> f32 {
+    x * x
+}
+
+/// Which techniques an iteration uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Techniques {
+    /// Vertex connection: next-event estimation, connections between subpaths, and light tracing.
+    pub connect: bool,
+    /// Vertex merging.
+    pub merge: bool,
+    /// Light tracing only: light subpaths connected to the camera, plus emission seen directly; nothing else.
+    pub light_tracing_only: bool,
+}
+
+impl Techniques {
+    /// The techniques of a method (`vcm`, `bdpt`, `lt`); `None` for the other methods.
+    pub fn of(integrator: Integrator) -> Option<Self> {
+        match integrator {
+            Integrator::Vcm => Some(Self { connect: true, merge: true, light_tracing_only: false }),
+            Integrator::Bdpt => Some(Self { connect: true, merge: false, light_tracing_only: false }),
+            Integrator::Lt => Some(Self { connect: false, merge: false, light_tracing_only: true }),
+            _ => None,
+        }
+    }
+}
+
+/// The constants of one iteration (the report's §3.2 and SmallVCM's `InitIteration`).
+#[derive(Clone, Copy, Debug)]
+pub struct Iteration {
+    /// The techniques.
+    pub techniques: Techniques,
+    /// Light subpaths per iteration, `N` (the number of pixels).
+    pub light_paths: f32,
+    /// Squared merging radius `r²`.
+    pub r2: f32,
+    /// `mis(η_VCM)`, `η_VCM = π r² N`, or 0 without merging: merging's weight relative to a connection.
+    pub vm_weight: f32,
+    /// `mis(1/η_VCM)`, or 0 without connections.
+    pub vc_weight: f32,
+    /// The merge estimate's normalisation, `1 / (r² N)` (the kernel supplies its own `1/π`).
+    pub vm_normalization: f32,
+    /// Kernel of the merges.
+    pub kernel: Kernel,
+    /// The longest path, in segments (`render.max_depth + 1`).
+    pub max_len: u32,
+}
+
+impl Iteration {
+    /// The constants of an iteration of `techniques` over `light_paths` subpaths at squared radius `r2`.
+    pub fn new(techniques: Techniques, light_paths: f32, r2: f32, kernel: Kernel, max_depth: u32) -> Self {
+        let eta_vcm = PI * r2 * light_paths;
+        let vm_weight = if techniques.merge && eta_vcm > 0.0 { mis(eta_vcm) } else { 0.0 };
+        let vc_weight = if techniques.connect && techniques.merge && eta_vcm > 0.0 { mis(1.0 / eta_vcm) } else { 0.0 };
+        let vm_normalization = if r2 > 0.0 && light_paths > 0.0 { 1.0 / (r2 * light_paths) } else { 0.0 };
+        Self {
+            techniques,
+            light_paths,
+            r2,
+            vm_weight,
+            vc_weight,
+            vm_normalization,
+            kernel,
+            max_len: max_depth.saturating_add(1),
+        }
+    }
+}
+
+/// The recursive MIS quantities of a subpath at its last vertex (the report's eqs. 31–36), and its length.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MisState {
+    /// `dVCM`.
+    pub d_vcm: f32,
+    /// `dVC`.
+    pub d_vc: f32,
+    /// `dVM`.
+    pub d_vm: f32,
+    /// Segments from the subpath's origin (the light or the camera) to its last vertex.
+    pub len: u32,
+}
+
+impl MisState {
+    /// The quantities of a light subpath leaving the light (eqs. 31–33; delta lights, eqs. 48–50), before its
+    /// first hit: `direct_pdf_a` is the area density of the light point as next-event estimation picks it,
+    /// `emission_pdf_w` the density of emitting this point and direction (the product of the point's area
+    /// density and the direction's solid-angle density), `cos_light` the cosine at the light.
+    pub fn emitted(it: &Iteration, direct_pdf_a: f32, emission_pdf_w: f32, cos_light: f32, delta: bool) -> Self {
+        let d_vc = if delta { 0.0 } else { mis(cos_light / emission_pdf_w) };
+        Self { d_vcm: mis(direct_pdf_a / emission_pdf_w), d_vc, d_vm: d_vc * it.vc_weight, len: 1 }
+    }
+
+    /// The quantities of a camera subpath whose first direction has solid-angle density `camera_pdf_w` (the
+    /// camera's importance per pixel), before its first hit.
+    pub fn from_camera(it: &Iteration, camera_pdf_w: f32) -> Self {
+        Self { d_vcm: mis(it.light_paths / camera_pdf_w), d_vc: 0.0, d_vm: 0.0, len: 1 }
+    }
+
+    /// Completes the quantities at a new vertex reached over distance `dist`, whose geometric normal makes
+    /// `|cos| = cos_in` with the arriving direction (the area-measure part of eqs. 31–36).
+    #[inline]
+    pub fn arrive(&mut self, dist: f32, cos_in: f32) {
+        self.d_vcm *= mis(dist * dist);
+        let c = mis(cos_in);
+        self.d_vcm /= c;
+        self.d_vc /= c;
+        self.d_vm /= c;
+    }
+
+    /// The quantities after sampling the next direction: `cos_out = |wi·ng|`, the forward density `pdf` and the
+    /// reverse density `pdf_rev` (both in solid angle, Russian roulette included), or for a delta lobe
+    /// (`delta`) only the cosine (eqs. 53–55: the delta's densities cancel and no technique ends here).
+    #[inline]
+    pub fn scatter(&mut self, it: &Iteration, cos_out: f32, pdf: f32, pdf_rev: f32, delta: bool) {
+        if delta {
+            self.d_vcm = 0.0;
+            self.d_vc *= mis(cos_out);
+            self.d_vm *= mis(cos_out);
+        } else {
+            let g = mis(cos_out / pdf);
+            self.d_vc = g * (self.d_vc * mis(pdf_rev) + self.d_vcm + it.vm_weight);
+            self.d_vm = g * (self.d_vm * mis(pdf_rev) + self.d_vcm * it.vc_weight + 1.0);
+            self.d_vcm = mis(1.0 / pdf);
+        }
+        self.len += 1;
+    }
+}
+
+/// A stored light-subpath vertex.
+#[derive(Clone, Copy, Debug)]
+pub struct LightVertex {
+    /// The surface point and a bound on its rounding error.
+    pub p: Vec3A,
+    p_error: Vec3A,
+    /// The BSDF there.
+    pub bsdf: Bsdf,
+    /// Unit direction towards the previous vertex (where the light came from).
+    pub wo: Vec3A,
+    /// Throughput from the light (flux-like: emitted radiance over the densities, not divided by `N`).
+    pub beta: Rgb,
+    /// Russian roulette's continuation probability at this vertex.
+    q: f32,
+    /// The MIS quantities.
+    pub mis: MisState,
+}
+
+/// Russian roulette's continuation probability at a vertex: the largest channel of the albedo, at most 1.
+#[inline]
+pub fn continuation(bsdf: &Bsdf, wo: Vec3A) -> f32 {
+    let q = bsdf.albedo(wo).max_element();
+    if q.is_finite() { q.clamp(0.0, 1.0) } else { 0.0 }
+}
+
+/// One light-tracing contribution: a pixel index (`y·width + x`) and radiance.
+type Splat = (u32, Rgb);
+
+/// The vertices, subpath ends, splats and rays of one parallel chunk of light subpaths.
+type LightChunk = (Vec<LightVertex>, Vec<u32>, Vec<Splat>, u64);
+
+/// The light subpaths of one iteration.
+pub struct LightPaths {
+    /// Every stored vertex, subpath after subpath.
+    pub vertices: Vec<LightVertex>,
+    /// `ends[j]`: one past the last vertex of subpath `j`.
+    pub ends: Vec<u32>,
+    /// Light-tracing contributions, in subpath order.
+    pub splats: Vec<Splat>,
+    /// Rays traced.
+    pub rays: u64,
+}
+
+impl LightPaths {
+    /// The vertices of subpath `j`.
+    pub fn of(&self, j: usize) -> &[LightVertex] {
+        let end = self.ends.get(j).copied().unwrap_or(0) as usize;
+        let start = if j == 0 { 0 } else { self.ends.get(j - 1).copied().unwrap_or(0) as usize };
+        self.vertices.get(start..end).unwrap_or(&[])
+    }
+}
+
+/// Traces the `N` light subpaths of iteration `pass` (in parallel, in fixed chunks, concatenated in order).
+pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32) -> LightPaths {
+    let n = it.light_paths as usize;
+    let chunks: Vec<LightChunk> = (0..n.div_ceil(CHUNK))
+        .into_par_iter()
+        .map(|c| {
+            let (mut vertices, mut ends, mut splats, mut rays) = (Vec::new(), Vec::new(), Vec::new(), 0u64);
+            for j in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                let mut s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
+                light_subpath(prep, it, &mut s, &mut vertices, &mut splats, &mut rays);
+                ends.push(vertices.len() as u32);
+            }
+            (vertices, ends, splats, rays)
+        })
+        .collect();
+    let mut out = LightPaths { vertices: Vec::new(), ends: Vec::with_capacity(n), splats: Vec::new(), rays: 0 };
+    for (vertices, ends, splats, rays) in chunks {
+        let base = out.vertices.len() as u32;
+        out.ends.extend(ends.iter().map(|e| e + base));
+        out.vertices.extend(vertices);
+        out.splats.extend(splats);
+        out.rays += rays;
+    }
+    out
+}
+
+/// Emission of a light subpath: the first ray, the throughput, and the MIS quantities before the first hit
+/// (eqs. 31–33, with delta lights as eqs. 48–50).
+fn emit(prep: &Prepared, it: &Iteration, s: &mut Sampler) -> Option<(Ray, Rgb, MisState)> {
+    let (i, pick) = prep.lights.choose(s.next_f32())?;
+    let (u, u2) = (s.next_2d(), s.next_2d());
+    let (ray, beta, emission_pdf_w, direct_pdf_a, cos_light, delta) = match *prep.lights.lights.get(i)? {
+        Light::Point { p, intensity } => {
+            let pdf = pick / (4.0 * PI);
+            (Ray::new(p, uniform_sphere(u)), intensity / pdf, pdf, pick, 1.0, true)
+        }
+        Light::Area { prim, le, two_sided, area } => {
+            let (p, p_error, n) = prep.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u);
+            let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
+            let local = cosine_hemisphere(u2);
+            let d = Frame::from_normal(side).to_world(local);
+            let cos = local.z;
+            let sides = if two_sided { 0.5 } else { 1.0 };
+            let pdf = pick / area * cos * FRAC_1_PI * sides;
+            let ray = Ray::new(offset_ray_origin_by_error(p, p_error, side, d), d);
+            (ray, le * (cos / pdf), pdf, pick / area, cos, false)
+        }
+    };
+    if !(emission_pdf_w > 0.0 && beta.is_finite()) {
+        return None;
+    }
+    Some((ray, beta, MisState::emitted(it, direct_pdf_a, emission_pdf_w, cos_light, delta)))
+}
+
+/// Traces one light subpath: stores its vertices (when connecting or merging) and connects each to the camera
+/// (when connecting, or light tracing).
+fn light_subpath(
+    prep: &Prepared,
+    it: &Iteration,
+    s: &mut Sampler,
+    vertices: &mut Vec<LightVertex>,
+    splats: &mut Vec<Splat>,
+    rays: &mut u64,
+) {
+    let Some((mut ray, mut beta, mut state)) = emit(prep, it, s) else { return };
+    let tech = it.techniques;
+    loop {
+        *rays += 1;
+        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+        let wo = -ray.d;
+        state.arrive(hit.t, wo.dot(hit.n).abs());
+        let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.black_from(wo) {
+            break;
+        }
+        let q = continuation(&bsdf, wo);
+        if bsdf.has_non_delta() {
+            let v = LightVertex { p: hit.p, p_error: hit.p_error, bsdf, wo, beta, q, mis: state };
+            if tech.connect || tech.merge {
+                vertices.push(v);
+            }
+            if (tech.connect || tech.light_tracing_only) && state.len < it.max_len {
+                connect_to_camera(prep, it, &hit, &v, s, splats, rays);
+            }
+        }
+        if state.len + 2 > it.max_len {
+            break;
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Importance) else { break };
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+            break;
+        }
+        let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
+        state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q) * bsdf.adjoint_correction(wo, bs.wi));
+        if !beta.is_finite() || beta == Rgb::ZERO {
+            break;
+        }
+        ray = hit.spawn_ray(bs.wi);
+    }
+}
+
+/// Light tracing: connects light vertex `v` (at `hit`) to a point on the lens and adds its contribution to the
+/// pixel it lands on (SmallVCM's `ConnectToCamera`; the report's eqs. 46–47). The contribution is
+/// `w · β · f · |cos_x| · W_e / (d² N)`, with `W_e` the camera's importance per pixel
+/// ([`crate::camera::Camera::pixel_direction_pdf`]).
+fn connect_to_camera(
+    prep: &Prepared,
+    it: &Iteration,
+    hit: &Hit,
+    v: &LightVertex,
+    s: &mut Sampler,
+    splats: &mut Vec<Splat>,
+    rays: &mut u64,
+) {
+    let camera = &prep.camera;
+    let lens = camera.lens_point(s.next_2d());
+    let to_lens = lens - v.p;
+    let dist2 = to_lens.length_squared();
+    if dist2.is_nan() || dist2 <= 0.0 {
+        return;
+    }
+    let dist = dist2.sqrt();
+    let w = to_lens / dist;
+    let Some((film, cos_camera)) = camera.film_position(lens, -w) else { return };
+    let f = v.bsdf.f(v.wo, w, TransportMode::Importance) * v.bsdf.adjoint_correction(v.wo, w);
+    if f == Rgb::ZERO {
+        return;
+    }
+    let camera_pdf_w = camera.pixel_direction_pdf(cos_camera);
+    // The density of this vertex sampled from the camera, in area measure.
+    let camera_pdf_a = camera_pdf_w * w.dot(v.bsdf.ng).abs() / dist2;
+    let weight = weights::light_trace(it, &v.mis, camera_pdf_a, v.bsdf.pdf(w, v.wo) * v.q);
+    let c = v.beta * f * (weight * w.dot(v.bsdf.frame.n).abs() * camera_pdf_w / (dist2 * it.light_paths));
+    if !c.is_finite() || c == Rgb::ZERO {
+        return;
+    }
+    *rays += 1;
+    if !unoccluded(prep, hit, w, lens) {
+        return;
+    }
+    let (x, y) = ((film.x as u32).min(camera.width - 1), (film.y as u32).min(camera.height - 1));
+    splats.push((y * camera.width + x, c));
+}
+
+/// A kd-tree over the light vertices' positions (items are vertex indices), for merging.
+type Tree = ImmutableKdTree<f32, 3>;
+
+/// The merging index of an iteration's light vertices; `None` when there are none.
+pub fn merge_tree(vertices: &[LightVertex]) -> Option<Tree> {
+    if vertices.is_empty() || u32::try_from(vertices.len()).is_err() {
+        return None;
+    }
+    let positions: Vec<[f32; 3]> = vertices.par_iter().map(|v| v.p.to_array()).collect();
+    if positions.iter().flatten().any(|c| !c.is_finite()) {
+        return None;
+    }
+    Tree::new_from_source_parallel(&positions, |p, dim| p[dim], |i, _| i as u32).ok()
+}
+
+/// What a camera subpath sees of one iteration's light subpaths.
+pub struct LightSide<'a> {
+    /// The light subpaths.
+    pub paths: &'a LightPaths,
+    /// Their merging index (with merging only).
+    pub tree: Option<&'a Tree>,
+}
+
+/// The camera subpath of sample `pass` of pixel `(x, y)`: the radiance it gathers by every technique of `it`
+/// (SmallVCM's camera loop). Non-finite contributions count as zero.
+pub fn camera_subpath(
+    prep: &Prepared,
+    it: &Iteration,
+    light: &LightSide,
+    (x, y): (u32, u32),
+    pass: u32,
+    rays: &mut u64,
+) -> Rgb {
+    let (mut ray, mut s) = super::camera_sample(prep, prep.settings.seed, x, y, pass);
+    let camera = &prep.camera;
+    let tech = it.techniques;
+    let cos_camera = ray.d.dot(camera.forward());
+    if cos_camera.is_nan() || cos_camera <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let camera_pdf_w = camera.pixel_direction_pdf(cos_camera);
+    let mut state = MisState::from_camera(it, camera_pdf_w);
+    let mut beta = Rgb::ONE;
+    let mut l = Rgb::ZERO;
+    let own_path = light.paths.of((y * camera.width + x) as usize);
+    let mut scratch: Vec<(u32, f32)> = Vec::new();
+    loop {
+        *rays += 1;
+        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+        let wo = -ray.d;
+        state.arrive(hit.t, wo.dot(hit.n).abs());
+        if hit.light != NONE {
+            let le = emission(prep, it, &hit, wo, &state);
+            l += finite_or_zero(beta * le);
+        }
+        if tech.light_tracing_only || state.len >= it.max_len {
+            break;
+        }
+        let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.black_from(wo) {
+            break;
+        }
+        let q = continuation(&bsdf, wo);
+        let vertex = CameraVertex { hit: &hit, bsdf: &bsdf, wo, q, mis: state };
+        if bsdf.has_non_delta() {
+            if tech.connect {
+                l += finite_or_zero(beta * direct_light(prep, it, &vertex, &mut s, rays));
+                for v in own_path {
+                    if v.mis.len + 1 + state.len > it.max_len {
+                        break;
+                    }
+                    l += finite_or_zero(beta * connect(prep, it, &vertex, v, rays));
+                }
+            }
+            if let (true, Some(tree)) = (tech.merge, light.tree) {
+                l += finite_or_zero(beta * merge(it, &vertex, &light.paths.vertices, tree, &mut scratch));
+            }
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+            break;
+        }
+        let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
+        state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q));
+        if !beta.is_finite() || beta == Rgb::ZERO {
+            break;
+        }
+        ray = hit.spawn_ray(bs.wi);
+    }
+    l
+}
+
+/// A camera-subpath vertex with a non-delta lobe.
+struct CameraVertex<'a> {
+    hit: &'a Hit,
+    bsdf: &'a Bsdf,
+    wo: Vec3A,
+    q: f32,
+    mis: MisState,
+}
+
+/// Emission at `hit` on an area light, found by a camera subpath in `state`, weighted against the techniques
+/// that end the path on the light by sampling it (eqs. 42–43); in full when the camera sees the light directly.
+fn emission(prep: &Prepared, it: &Iteration, hit: &Hit, wo: Vec3A, state: &MisState) -> Rgb {
+    let Some(light) = prep.lights.lights.get(hit.light as usize) else { return Rgb::ZERO };
+    let le = light.le(hit, wo);
+    if le == Rgb::ZERO || state.len == 1 {
+        return le;
+    }
+    if it.techniques.light_tracing_only {
+        return Rgb::ZERO;
+    }
+    let Light::Area { area, two_sided, .. } = *light else { return Rgb::ZERO };
+    let pick = prep.lights.pmf(hit.light as usize);
+    let direct_pdf_a = pick / area;
+    let emission_pdf_w = direct_pdf_a * wo.dot(hit.n).abs() * FRAC_1_PI * if two_sided { 0.5 } else { 1.0 };
+    le * weights::emission(state, direct_pdf_a, emission_pdf_w)
+}
+
+/// Next-event estimation at a camera vertex: a light chosen by power, a point on it (SmallVCM's
+/// `DirectIllumination`; eqs. 44–45).
+fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampler, rays: &mut u64) -> Rgb {
+    let (u, u2) = (s.next_f32(), s.next_2d());
+    let Some((i, pick)) = prep.lights.choose(u) else { return Rgb::ZERO };
+    let Some(light) = prep.lights.lights.get(i) else { return Rgb::ZERO };
+    let Some(ls) = light.sample_li(&prep.geometry, c.hit.p, u2) else { return Rgb::ZERO };
+    // Radiance (or intensity), the solid-angle density of the sample at the vertex, the emission density of
+    // the opposite direction, and the cosine at the light.
+    let (radiance, direct_pdf_w, emission_pdf_w, cos_light) = match *light {
+        Light::Point { intensity, .. } => (intensity, ls.dist * ls.dist, 1.0 / (4.0 * PI), 1.0),
+        Light::Area { area, two_sided, .. } => {
+            let cos_light = ls.dist * ls.dist / (ls.pdf * area);
+            let sides = if two_sided { 0.5 } else { 1.0 };
+            (ls.li, ls.pdf, cos_light * FRAC_1_PI * sides / area, cos_light)
+        }
+    };
+    let f = c.bsdf.f(c.wo, ls.wi, TransportMode::Radiance);
+    if f == Rgb::ZERO || !(direct_pdf_w > 0.0 && pick > 0.0 && cos_light > 0.0) {
+        return Rgb::ZERO;
+    }
+    let bsdf_pdf = if ls.delta { 0.0 } else { c.bsdf.pdf(c.wo, ls.wi) * c.q };
+    let bsdf_pdf_rev = c.bsdf.pdf(ls.wi, c.wo) * c.q;
+    let emission_ratio = emission_pdf_w * ls.wi.dot(c.bsdf.ng).abs() / (direct_pdf_w * cos_light);
+    let weight = weights::direct(it, &c.mis, bsdf_pdf, bsdf_pdf_rev, pick * direct_pdf_w, emission_ratio);
+    let contribution = radiance * f * (weight * ls.wi.dot(c.bsdf.frame.n).abs() / (pick * direct_pdf_w));
+    *rays += 1;
+    if !unoccluded(prep, c.hit, ls.wi, ls.p) {
+        return Rgb::ZERO;
+    }
+    contribution
+}
+
+/// Connects camera vertex `c` to light vertex `v` (SmallVCM's `ConnectVertices`; eqs. 40–41).
+fn connect(prep: &Prepared, it: &Iteration, c: &CameraVertex, v: &LightVertex, rays: &mut u64) -> Rgb {
+    let d = v.p - c.hit.p;
+    let dist2 = d.length_squared();
+    if dist2.is_nan() || dist2 <= 0.0 {
+        return Rgb::ZERO;
+    }
+    let w = d / dist2.sqrt();
+    let f_camera = c.bsdf.f(c.wo, w, TransportMode::Radiance);
+    if f_camera == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let f_light = v.bsdf.f(v.wo, -w, TransportMode::Importance) * v.bsdf.adjoint_correction(v.wo, -w);
+    if f_light == Rgb::ZERO {
+        return Rgb::ZERO;
+    }
+    let g = w.dot(c.bsdf.frame.n).abs() * w.dot(v.bsdf.frame.n).abs() / dist2;
+    // Densities of each end sampling the other, in area measure.
+    let camera_pdf_a = c.bsdf.pdf(c.wo, w) * c.q * w.dot(v.bsdf.ng).abs() / dist2;
+    let light_pdf_a = v.bsdf.pdf(v.wo, -w) * v.q * w.dot(c.bsdf.ng).abs() / dist2;
+    let camera_pdf_rev = c.bsdf.pdf(w, c.wo) * c.q;
+    let light_pdf_rev = v.bsdf.pdf(-w, v.wo) * v.q;
+    let weight = weights::connect(it, &c.mis, &v.mis, camera_pdf_a, camera_pdf_rev, light_pdf_a, light_pdf_rev);
+    let contribution = f_camera * f_light * v.beta * (weight * g);
+    if contribution == Rgb::ZERO || !contribution.is_finite() {
+        return Rgb::ZERO;
+    }
+    *rays += 1;
+    let target = offset_ray_origin_by_error(v.p, v.p_error, v.bsdf.ng, -w);
+    if !unoccluded(prep, c.hit, w, target) {
+        return Rgb::ZERO;
+    }
+    contribution
+}
+
+/// Merges camera vertex `c` with the light vertices within the radius (SmallVCM's `RangeQuery`; eqs. 38–39):
+/// `Σ w · f · β · K(d/r) / (r² N)`, skipping vertices as the photon maps do (arriving from behind, or stored
+/// on a surface facing away).
+fn merge(
+    it: &Iteration,
+    c: &CameraVertex,
+    vertices: &[LightVertex],
+    tree: &Tree,
+    scratch: &mut Vec<(u32, f32)>,
+) -> Rgb {
+    scratch.clear();
+    let q: [f32; 3] = c.hit.p.to_array();
+    tree.query(&q).within::<SquaredEuclidean<f32>>(it.r2).unsorted().visit(|r| scratch.push((r.item, r.distance)));
+    let n = c.hit.normal_towards(c.wo);
+    let inv_r2 = 1.0 / it.r2;
+    let mut sum = Rgb::ZERO;
+    for &(index, d2) in scratch.iter() {
+        let Some(v) = vertices.get(index as usize) else { continue };
+        if v.mis.len + c.mis.len > it.max_len {
+            continue;
+        }
+        let wi = v.wo;
+        let n_light = if wi.dot(v.bsdf.ng) >= 0.0 { v.bsdf.ng } else { -v.bsdf.ng };
+        if wi.dot(n) <= 0.0 || n_light.dot(n) <= 0.0 {
+            continue;
+        }
+        let f = c.bsdf.f(c.wo, wi, TransportMode::Radiance) * c.bsdf.arrival_correction(wi);
+        if f == Rgb::ZERO {
+            continue;
+        }
+        let camera_pdf = c.bsdf.pdf(c.wo, wi) * c.q;
+        let camera_pdf_rev = c.bsdf.pdf(wi, c.wo) * c.q;
+        let weight = weights::merge(it, &c.mis, &v.mis, camera_pdf, camera_pdf_rev);
+        sum += f * v.beta * (weight * it.kernel.weight(d2 * inv_r2));
+    }
+    sum * it.vm_normalization
+}
+
+/// The MIS weight of each technique, from the quantities of the subpaths it joins and the densities at the
+/// join (every density in solid angle includes Russian roulette's `q` at its vertex; area densities are the
+/// solid-angle ones times `|cos| / d²` at the vertex they land on). The weights of all the techniques that can
+/// make one path sum to 1 (a test checks it on stored paths).
+pub mod weights {
+    use super::{Iteration, MisState, mis};
+
+    /// A camera subpath that found an area light (eqs. 42–43): `direct_pdf_a` is the area density with which
+    /// next-event estimation would pick the point, `emission_pdf_w` the density of emitting towards the
+    /// subpath (light choice included in both). 1 when the camera sees the light directly.
+    pub fn emission(camera: &MisState, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
+        if camera.len == 1 {
+            return 1.0;
+        }
+        1.0 / (1.0 + mis(direct_pdf_a) * camera.d_vcm + mis(emission_pdf_w) * camera.d_vc)
+    }
+
+    /// Next-event estimation at a camera vertex (eqs. 44–45): `bsdf_pdf` is the density of the BSDF sampling
+    /// the light direction (0 for a delta light), `bsdf_pdf_rev` of the reverse direction, `light_pdf_w` the
+    /// solid-angle density of the light sample (light choice included), and `emission_ratio` the emission
+    /// density of the opposite direction over the light sample's, as area densities at the two ends
+    /// (`emission_pdf_w · |cos_vertex| / (direct_pdf_w · |cos_light|)`; the light choice cancels).
+    pub fn direct(
+        it: &Iteration,
+        camera: &MisState,
+        bsdf_pdf: f32,
+        bsdf_pdf_rev: f32,
+        light_pdf_w: f32,
+        emission_ratio: f32,
+    ) -> f32 {
+        let w_light = mis(bsdf_pdf / light_pdf_w);
+        let w_camera = mis(emission_ratio) * (it.vm_weight + camera.d_vcm + camera.d_vc * mis(bsdf_pdf_rev));
+        1.0 / (w_light + 1.0 + w_camera)
+    }
+
+    /// A connection between a camera vertex and a light vertex (eqs. 40–41): `camera_pdf_a` is the camera
+    /// vertex's BSDF sampling the light vertex (area density there), `light_pdf_a` the reverse, and each
+    /// `*_pdf_rev` the vertex's BSDF sampling its own predecessor from the connecting direction.
+    pub fn connect(
+        it: &Iteration,
+        camera: &MisState,
+        light: &MisState,
+        camera_pdf_a: f32,
+        camera_pdf_rev: f32,
+        light_pdf_a: f32,
+        light_pdf_rev: f32,
+    ) -> f32 {
+        let w_light = mis(camera_pdf_a) * (it.vm_weight + light.d_vcm + light.d_vc * mis(light_pdf_rev));
+        let w_camera = mis(light_pdf_a) * (it.vm_weight + camera.d_vcm + camera.d_vc * mis(camera_pdf_rev));
+        1.0 / (w_light + 1.0 + w_camera)
+    }
+
+    /// A light vertex connected to the camera (eqs. 46–47): `camera_pdf_a` is the camera's density of the
+    /// vertex (area density), `light_pdf_rev` the vertex's BSDF sampling its predecessor from the camera's
+    /// direction. Light tracing alone (no other technique) weighs 1.
+    pub fn light_trace(it: &Iteration, light: &MisState, camera_pdf_a: f32, light_pdf_rev: f32) -> f32 {
+        if it.techniques.light_tracing_only {
+            return 1.0;
+        }
+        let w_light =
+            mis(camera_pdf_a / it.light_paths) * (it.vm_weight + light.d_vcm + light.d_vc * mis(light_pdf_rev));
+        1.0 / (1.0 + w_light)
+    }
+
+    /// A merge of a camera vertex with a light vertex (eqs. 38–39): `camera_pdf` is the camera vertex's BSDF
+    /// sampling the light vertex's incoming direction, `camera_pdf_rev` the reverse.
+    pub fn merge(it: &Iteration, camera: &MisState, light: &MisState, camera_pdf: f32, camera_pdf_rev: f32) -> f32 {
+        let w_light = light.d_vcm * it.vc_weight + light.d_vm * mis(camera_pdf);
+        let w_camera = camera.d_vcm * it.vc_weight + camera.d_vm * mis(camera_pdf_rev);
+        1.0 / (w_light + 1.0 + w_camera)
+    }
+}
+
+fn finite_or_zero(c: Rgb) -> Rgb {
+    if c.is_finite() { c } else { Rgb::ZERO }
+}
+
+/// Renders iterations `passes` of `vcm`, `bdpt` or `lt` over rows `rows`: each pixel channel's sum over those
+/// iterations of its fixed-point estimate (see the module docs). Every iteration traces all `N` light
+/// subpaths, whatever the rows. `progress` gets the iterations finished so far and returns `false` to cancel
+/// (then `None`).
+pub(super) fn render_passes(
+    prep: &Prepared,
+    techniques: Techniques,
+    rows: Range<u32>,
+    passes: Range<u32>,
+    progress: &(dyn Fn(u32) -> bool + Sync),
+) -> Option<PassSums> {
+    let ph = &prep.settings.photons;
+    let camera = &prep.camera;
+    let width = camera.width as usize;
+    let light_paths = (camera.width as usize * camera.height as usize) as f32;
+    let mut sums = vec![0i64; 3 * width * rows.len()];
+    let mut pass_sums = vec![0i64; sums.len()];
+    let (mut rays, mut photon_paths, mut photon_seconds) = (0u64, 0u64, 0.0f64);
+    let mut radius = RadiusSequence::at(prep.merge_radius(), ph.alpha, passes.start);
+    for (done, pass) in passes.clone().enumerate() {
+        let it = Iteration::new(techniques, light_paths, radius.r2(), ph.kernel, prep.settings.max_depth);
+        radius = radius.next();
+        let t0 = Instant::now();
+        let paths = trace_light_paths(prep, &it, pass);
+        let tree = if techniques.merge { merge_tree(&paths.vertices) } else { None };
+        photon_seconds += t0.elapsed().as_secs_f64();
+        photon_paths += light_paths as u64;
+        rays += paths.rays;
+        let light = LightSide { paths: &paths, tree: tree.as_ref() };
+        rays += pass_sums
+            .par_chunks_mut(3 * width)
+            .zip(rows.clone().into_par_iter())
+            .map(|(row, y)| {
+                let mut rays = 0u64;
+                for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                    let c = camera_subpath(prep, &it, &light, (x as u32, y), pass, &mut rays);
+                    for (s, v) in px.iter_mut().zip(c.to_array()) {
+                        *s = to_fixed(v);
+                    }
+                }
+                rays
+            })
+            .sum::<u64>();
+        for &(pixel, c) in &paths.splats {
+            let y = pixel / camera.width;
+            if !rows.contains(&y) {
+                continue;
+            }
+            let at = 3 * ((y - rows.start) as usize * width + (pixel % camera.width) as usize);
+            for (s, v) in pass_sums[at..at + 3].iter_mut().zip(c.to_array()) {
+                *s = s.saturating_add(to_fixed(v));
+            }
+        }
+        for (s, p) in sums.iter_mut().zip(&pass_sums) {
+            *s = s.saturating_add((*p).clamp(0, MAX_PASS_SUM));
+        }
+        if !progress(done as u32 + 1) {
+            return None;
+        }
+    }
+    Some(PassSums { rows, passes, sums, rays, photon_paths, photon_seconds })
+}
