@@ -1,5 +1,5 @@
 //! A vanishing gather radius never gives NaN or Inf: below the floor (a millionth of the scene's size) it is
-//! an error naming `render.photons.radius`; at the floor, and even when the floor is bypassed, every photon
+//! an error naming `render.photons.radius` (`render.photons.merge_radius` for vcm); at the floor, and even when the floor is bypassed, every photon
 //! method renders a finite image.
 
 #![allow(clippy::unwrap_used)]
@@ -9,7 +9,7 @@ use photon_core::render::render_image;
 use photon_core::scene::{Integrator, Scene, SceneError};
 use std::path::{Path, PathBuf};
 
-/// The methods that gather photons, and `vcm`, which merges light vertices within the same radius.
+/// The methods that gather photons, and `vcm`, which merges light vertices within `merge_radius`.
 const PHOTON_METHODS: [Integrator; 4] =
     [Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive, Integrator::Vcm];
 
@@ -27,6 +27,7 @@ fn cornell(integrator: Integrator, radius: f32) -> (Scene, PathBuf) {
     r.photons.passes = 4;
     r.photons.final_gather_rays = 2;
     r.photons.radius = Some(radius);
+    r.photons.merge_radius = Some(radius);
     (scene, path)
 }
 
@@ -43,11 +44,10 @@ fn radius_below_the_floor_is_an_error_naming_the_field() {
         for radius in [1e-25, 1e-30, 0.0] {
             let (scene, path) = cornell(integrator, radius);
             let e = Prepared::new(&scene, &path).unwrap_err();
-            assert!(
-                matches!(&e, SceneError::Invalid { field, .. } if field == "render.photons.radius"),
-                "{integrator} {radius:e}: {e}"
-            );
-            assert!(e.to_string().contains("render.photons.radius"), "{e}");
+            let name =
+                if integrator == Integrator::Vcm { "render.photons.merge_radius" } else { "render.photons.radius" };
+            assert!(matches!(&e, SceneError::Invalid { field, .. } if field == name), "{integrator} {radius:e}: {e}");
+            assert!(e.to_string().contains(name), "{e}");
         }
     }
 }
@@ -79,6 +79,7 @@ fn estimators_stay_finite_when_the_floor_is_bypassed() {
             let (scene, path) = cornell(integrator, 1.0);
             let mut prep = Prepared::new(&scene, &path).unwrap();
             prep.settings.photons.radius = Some(radius);
+            prep.settings.photons.merge_radius = Some(radius);
             let prep = prep.with_photon_maps(&path).unwrap();
             assert_finite(&scene, &prep, &format!("{integrator} {radius:e}"));
         }

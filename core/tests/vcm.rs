@@ -536,3 +536,11 @@ fn error_falls_at_every_fourfold_step_of_iterations() {
         }
     }
 }
+
+/// The memory budget counts a light vertex as `LIGHT_VERTEX_BYTES`: it must not be smaller than the vertex.
+#[test]
+fn the_memory_budget_counts_a_whole_light_vertex() {
+    use photon_core::prepare::budget::LIGHT_VERTEX_BYTES;
+    use photon_core::render::vcm::LightVertex;
+    assert!(std::mem::size_of::<LightVertex>() as u64 <= LIGHT_VERTEX_BYTES, "{}", std::mem::size_of::<LightVertex>());
+}

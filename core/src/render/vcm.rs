@@ -24,7 +24,8 @@
 //! at radius `r_p`, with acceptance probability `π r² p_A` in the weights (the report's `η_VCM = π r² N`).
 //!
 //! The radius shrinks as progressive photon mapping's (Knaus & Zwicker 2011, eq. 15): `r_p² = r_0² ·
-//! Π (i + α)/(i + 1)`, `r_0` = [`Prepared::merge_radius`] (by default one pixel's width at the focus distance), `α = render.photons.alpha`, so merging's bias vanishes
+//! Π (i + α)/(i + 1)`, `r_0` = [`Prepared::merge_radius`] (`render.photons.merge_radius`, by default one pixel's width at the focus
+//! distance), `α = render.photons.alpha`, so merging's bias vanishes
 //! and the method is consistent; `bdpt` and `lt` are unbiased.
 //!
 //! Russian roulette at a vertex continues with probability `q = min(1, max albedo)`, a property of the vertex

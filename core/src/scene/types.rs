@@ -202,6 +202,10 @@ pub struct PhotonSettings {
     /// shrinks it pass by pass so that the volume `r³` follows the same sequence as the surfaces' `r²`.
     #[serde(default)]
     pub volume_radius: Option<f32>,
+    /// First merging radius of `vcm` (scene units); default the width of one pixel at the focus distance
+    /// (`Prepared::merge_radius`). It shrinks with `alpha` as progressive's radius does.
+    #[serde(default)]
+    pub merge_radius: Option<f32>,
     /// Density-estimation kernel: `box`, `cone`, `epanechnikov` (default), `gaussian`, `linear`, `quadratic`.
     #[serde(default = "default_kernel")]
     pub kernel: crate::photon::Kernel,
@@ -235,6 +239,7 @@ impl Default for PhotonSettings {
             k: default_k(),
             radius: None,
             volume_radius: None,
+            merge_radius: None,
             kernel: default_kernel(),
             disc: None,
             same_object: false,

@@ -232,6 +232,9 @@ impl RenderSettings {
         if let Some(radius) = ph.radius {
             positive(&pf("radius"), radius)?;
         }
+        if let Some(radius) = ph.merge_radius {
+            positive(&pf("merge_radius"), radius)?;
+        }
         if let Some(disc) = ph.disc {
             positive(&pf("disc"), disc)?;
         }
