@@ -274,8 +274,10 @@ impl StoredPath {
                 let (l, c) = (self.light_state(prep, it, i), self.camera_state(prep, it, i));
                 let v = self.vertex(i);
                 let (cwo, lwo) = (dir(self.p(i), self.p(i + 1)), dir(self.p(i), self.p(i - 1)));
-                let q = continuation(&v.bsdf, cwo);
-                let weight = weights::merge(it, &c, &l, v.bsdf.pdf(cwo, lwo) * q, v.bsdf.pdf(lwo, cwo) * q);
+                // As the renderer: the forward density with the camera vertex's roulette, the reverse one with
+                // the light vertex's (here the same point).
+                let (cq, lq) = (continuation(&v.bsdf, cwo), continuation(&v.bsdf, lwo));
+                let weight = weights::merge(it, &c, &l, v.bsdf.pdf(cwo, lwo) * cq, v.bsdf.pdf(lwo, cwo) * lq);
                 out.push((format!("merge at z{i}"), weight));
             }
         }

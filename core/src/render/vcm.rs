@@ -249,7 +249,8 @@ impl LightPaths {
 
 /// Traces the `N` light subpaths of iteration `pass` (in parallel, in fixed chunks, concatenated in order).
 pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32) -> LightPaths {
-    let n = it.light_paths as usize;
+    // The count itself, not `it.light_paths` (an f32, inexact above 2²⁴ pixels).
+    let n = prep.camera.width as usize * prep.camera.height as usize;
     let chunks: Vec<LightChunk> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
@@ -614,9 +615,16 @@ fn merge(
         if f == Rgb::ZERO {
             continue;
         }
+        // The forward density continues the camera subpath (its vertex's roulette); the reverse one stands for
+        // the light subpath continuing from its own vertex, so it takes that vertex's roulette (SmallVCM does
+        // the same): the two vertices differ, and so may their albedos.
         let camera_pdf = c.bsdf.pdf(c.wo, wi) * c.q;
-        let camera_pdf_rev = c.bsdf.pdf(wi, c.wo) * c.q;
+        let camera_pdf_rev = c.bsdf.pdf(wi, c.wo) * v.q;
         let weight = weights::merge(it, &c.mis, &v.mis, camera_pdf, camera_pdf_rev);
+        // A weight made non-finite by a degenerate vertex (a grazing arrival) drops that vertex, not the others.
+        if !weight.is_finite() {
+            continue;
+        }
         sum += f * v.beta * (weight * it.kernel.weight(d2 * inv_r2));
     }
     sum * it.vm_normalization
@@ -687,7 +695,8 @@ pub mod weights {
     }
 
     /// A merge of a camera vertex with a light vertex (eqs. 38–39): `camera_pdf` is the camera vertex's BSDF
-    /// sampling the light vertex's incoming direction, `camera_pdf_rev` the reverse.
+    /// sampling the light vertex's incoming direction (with the camera vertex's roulette), `camera_pdf_rev` the
+    /// reverse (with the light vertex's roulette: it stands for the light subpath continuing).
     pub fn merge(it: &Iteration, camera: &MisState, light: &MisState, camera_pdf: f32, camera_pdf_rev: f32) -> f32 {
         let w_light = light.d_vcm * it.vc_weight + light.d_vm * mis(camera_pdf);
         let w_camera = camera.d_vcm * it.vc_weight + camera.d_vm * mis(camera_pdf_rev);
@@ -724,8 +733,11 @@ pub(super) fn render_passes(
         let t0 = Instant::now();
         let paths = trace_light_paths(prep, &it, pass);
         let tree = if techniques.merge { merge_tree(&paths.vertices) } else { None };
+        if techniques.merge && tree.is_none() && !paths.vertices.is_empty() {
+            tracing::warn!("pass {pass}: the light vertices could not be indexed; this pass merges nothing");
+        }
         photon_seconds += t0.elapsed().as_secs_f64();
-        photon_paths += light_paths as u64;
+        photon_paths += u64::from(camera.width) * u64::from(camera.height);
         rays += paths.rays;
         let light = LightSide { paths: &paths, tree: tree.as_ref() };
         rays += pass_sums
