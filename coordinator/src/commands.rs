@@ -240,15 +240,7 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         passes: None,
         // The methods whose error more samples lower estimate it after every round, for the summary and the
         // live page, whether or not a target stops them.
-        estimate: matches!(
-            r.integrator,
-            Integrator::Path
-                | Integrator::Direct
-                | Integrator::Progressive
-                | Integrator::Vcm
-                | Integrator::Bdpt
-                | Integrator::Lt
-        ),
+        estimate: !r.integrator.needs_photon_maps(),
     }))
 }
 

@@ -388,7 +388,8 @@ pub(super) fn render_strip(
     Some(Strip { rows, pixels: acc.image(), rays, photon_paths })
 }
 
-fn finite_or_zero(c: Rgb) -> Rgb {
+/// `c`, or zero when a channel is not finite (an estimate that must not poison a fixed-point sum).
+pub(super) fn finite_or_zero(c: Rgb) -> Rgb {
     if c.is_finite() { c } else { Rgb::ZERO }
 }
 

@@ -44,7 +44,7 @@
 //! one camera sample per pass: the subpaths here do not cross media. Light tracing (`lt`) sees nothing through
 //! mirror or glass directly in front of the camera, as no light subpath can connect there.
 
-use super::progressive::{MAX_PASS_SUM, PassSums, RadiusSequence, to_fixed};
+use super::progressive::{MAX_PASS_SUM, PassSums, RadiusSequence, finite_or_zero, to_fixed};
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
 use crate::integrator::unoccluded;
@@ -337,19 +337,41 @@ fn light_subpath(
         if state.len + 2 > it.max_len {
             break;
         }
-        let (u, u2) = (s.next_f32(), s.next_2d());
-        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Importance) else { break };
-        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+        let Some(wi) = continue_subpath(it, &bsdf, wo, q, TransportMode::Importance, s, &mut state, &mut beta) else {
             break;
-        }
-        let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
-        state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
-        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q) * bsdf.adjoint_correction(wo, bs.wi));
-        if !beta.is_finite() || beta == Rgb::ZERO {
-            break;
-        }
-        ray = hit.spawn_ray(bs.wi);
+        };
+        ray = hit.spawn_ray(wi);
     }
+}
+
+/// One step of a subpath (SmallVCM's `SampleScattering`): samples the BSDF at a vertex reached from `wo` in
+/// `mode` (light subpaths carry importance, camera subpaths radiance), applies Russian roulette with
+/// continuation probability `q`, and updates the MIS quantities and the throughput (on a light subpath with the
+/// adjoint BSDF's shading-normal factor). The new direction, or `None` when the subpath ends.
+#[allow(clippy::too_many_arguments)]
+fn continue_subpath(
+    it: &Iteration,
+    bsdf: &Bsdf,
+    wo: Vec3A,
+    q: f32,
+    mode: TransportMode,
+    s: &mut Sampler,
+    state: &mut MisState,
+    beta: &mut Rgb,
+) -> Option<Vec3A> {
+    let (u, u2) = (s.next_f32(), s.next_2d());
+    let bs = bsdf.sample(wo, u, u2, mode)?;
+    if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+        return None;
+    }
+    let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
+    state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
+    let weight = bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q);
+    *beta *= match mode {
+        TransportMode::Importance => bs.f * (weight * bsdf.adjoint_correction(wo, bs.wi)),
+        TransportMode::Radiance => bs.f * weight,
+    };
+    (beta.is_finite() && *beta != Rgb::ZERO).then_some(bs.wi)
 }
 
 /// Light tracing: connects light vertex `v` (at `hit`) to a point on the lens and adds its contribution to the
@@ -440,7 +462,6 @@ pub fn camera_subpath(
     let mut beta = Rgb::ONE;
     let mut l = Rgb::ZERO;
     let own_path = light.paths.of((y * camera.width + x) as usize);
-    let mut scratch: Vec<(u32, f32)> = Vec::new();
     loop {
         *rays += 1;
         let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
@@ -471,21 +492,14 @@ pub fn camera_subpath(
                 }
             }
             if let (true, Some(tree)) = (tech.merge, light.tree) {
-                l += finite_or_zero(beta * merge(it, &vertex, &light.paths.vertices, tree, &mut scratch));
+                l += finite_or_zero(beta * merge(it, &vertex, &light.paths.vertices, tree));
             }
         }
-        let (u, u2) = (s.next_f32(), s.next_2d());
-        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+        let Some(wi) = continue_subpath(it, &bsdf, wo, q, TransportMode::Radiance, &mut s, &mut state, &mut beta)
+        else {
             break;
-        }
-        let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
-        state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
-        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q));
-        if !beta.is_finite() || beta == Rgb::ZERO {
-            break;
-        }
-        ray = hit.spawn_ray(bs.wi);
+        };
+        ray = hit.spawn_ray(wi);
     }
     l
 }
@@ -588,7 +602,12 @@ fn connect(prep: &Prepared, it: &Iteration, c: &CameraVertex, v: &LightVertex, r
 /// Merges camera vertex `c` with the light vertices within the radius (SmallVCM's `RangeQuery`; eqs. 38–39):
 /// `Σ w · f · β · K(d/r) / (r² N)`, skipping vertices as the photon maps do (arriving from behind, or stored
 /// on a surface facing away).
-fn merge(
+fn merge(it: &Iteration, c: &CameraVertex, vertices: &[LightVertex], tree: &Tree) -> Rgb {
+    crate::photon::with_scratch(|scratch| merge_in(it, c, vertices, tree, scratch))
+}
+
+/// [`merge`] with the gather's storage (the photon estimates' per-thread buffer).
+fn merge_in(
     it: &Iteration,
     c: &CameraVertex,
     vertices: &[LightVertex],
@@ -702,10 +721,6 @@ pub mod weights {
         let w_camera = camera.d_vcm * it.vc_weight + camera.d_vm * mis(camera_pdf_rev);
         1.0 / (w_light + 1.0 + w_camera)
     }
-}
-
-fn finite_or_zero(c: Rgb) -> Rgb {
-    if c.is_finite() { c } else { Rgb::ZERO }
 }
 
 /// Renders iterations `passes` of `vcm`, `bdpt` or `lt` over rows `rows`: each pixel channel's sum over those
