@@ -26,8 +26,9 @@ use photon_coordinator::job::Job;
 use photon_coordinator::model::{Network, SimJob, SimWorker, simulate};
 use photon_coordinator::scheduler::{Policy, Scheduler, WorkerId};
 use photon_coordinator::session;
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -47,7 +48,7 @@ fn job_of(prep: &Prepared) -> Job {
     )
 }
 
-fn cornell(size: u32, spp: u32, integrator: Integrator, photons: u32) -> (Scene, std::path::PathBuf) {
+fn cornell(size: u32, spp: u32, integrator: Method, photons: u32) -> (Scene, std::path::PathBuf) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
     let mut scene = Scene::load(&path).expect("cornell.toml");
     scene.camera.width = size;
@@ -80,7 +81,7 @@ fn main() {
 
     // 1. Overhead of the farm against the direct render.
     let (size, spp, runs) = if quick { (96, 8, 3) } else { (256, 32, 5) };
-    let (scene, path) = cornell(size, spp, Integrator::Path, 0);
+    let (scene, path) = cornell(size, spp, Method::Path, 0);
     let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
     let job = job_of(&prep);
     let (mut direct, mut inproc, mut two) = (Vec::new(), Vec::new(), Vec::new());
@@ -124,7 +125,7 @@ fn main() {
     let counts: &[u32] = if quick { &[100_000] } else { &[250_000, 1_000_000] };
     let mut last_blob = Vec::new();
     for &n in counts {
-        let (scene, path) = cornell(8, 1, Integrator::PhotonMap, n);
+        let (scene, path) = cornell(8, 1, Method::PhotonMap, n);
         let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
         let stored = prep.photons.as_ref().map_or(0, |p| p.global.len());
         let job = job_of(&prep);
@@ -176,7 +177,7 @@ fn main() {
     scene.camera.width = 1;
     scene.camera.height = rows;
     scene.render.spp = 1;
-    scene.render.integrator = Integrator::Path;
+    scene.render.integrator = Method::Path;
     let prep = Prepared::new(&scene, &path).and_then(|p| p.with_photon_maps(&path)).expect("prepare");
     let job = job_of(&prep);
     let mut rates = Vec::new();
@@ -229,11 +230,11 @@ fn compression(blob: &[u8]) {
 /// The scaling table: per method, in-process on all cores, then 1, 2, 4, …, `max` one-thread loopback workers.
 fn scaling(rt: &tokio::runtime::Runtime, quick: bool, cores: usize, max: usize) {
     let size = if quick { 64 } else { 128 };
-    let jobs: [(Integrator, u32, u32, u32); 4] = [
-        (Integrator::Path, 16, 0, 1),
-        (Integrator::PhotonMap, 8, 200_000, 1),
-        (Integrator::FinalGather, 2, 50_000, 1),
-        (Integrator::Progressive, 1, 20_000, 64),
+    let jobs: [(Method, u32, u32, u32); 4] = [
+        (Method::Path, 16, 0, 1),
+        (Method::PhotonMap, 8, 200_000, 1),
+        (Method::FinalGather, 2, 50_000, 1),
+        (Method::Progressive, 1, 20_000, 64),
     ];
     let mut counts = vec![1usize];
     while counts.last().is_some_and(|&n| n * 2 <= max) {
@@ -322,11 +323,11 @@ fn model() {
         "| method | job | units | per unit | strips | makespan s | ideal s | efficiency | prepare s | ship s | tail s | speculative | with 2 deaths: makespan s, efficiency |"
     );
     println!("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|");
-    let methods: [(Integrator, u32); 4] = [
-        (Integrator::Path, 0),
-        (Integrator::PhotonMap, 1_000_000),
-        (Integrator::FinalGather, 200_000),
-        (Integrator::Progressive, 100_000),
+    let methods: [(Method, u32); 4] = [
+        (Method::Path, 0),
+        (Method::PhotonMap, 1_000_000),
+        (Method::FinalGather, 200_000),
+        (Method::Progressive, 100_000),
     ];
     for (integrator, photons) in methods {
         let (mut scene, path) = cornell(width, 1, integrator, photons.max(1));
@@ -361,22 +362,24 @@ fn model() {
         let (units, core_s_per_unit, fixed, per_unit, label) = if integrator.renders_passes() {
             // Two passes over 8 rows: the photon (light path) part is per pass, the gather part per row.
             let (t, block) = one_thread(|| {
-                photon_core::render::progressive::render_passes(&prep, 0..rows, 0..2, &|_| true).expect("passes")
+                let block = photon_core::render::Block { rows: 0..rows, units: 0..2 };
+                photon_core::render::render_block(&prep, &block, &|_| true).expect("passes")
             });
             let photon_part = block.photon_seconds / 2.0;
             let per_pass = photon_part + (t - block.photon_seconds) / 2.0 / f64::from(rows) * f64::from(height);
             let passes = (target_s * lab_speed / per_pass).round() as u32;
-            let label = if integrator == Integrator::Progressive {
+            let label = if integrator == Method::Progressive {
                 format!("{passes} passes of {photons} paths")
             } else {
                 format!("{passes} passes")
             };
             (passes, per_pass, 24.0 * f64::from(width) * f64::from(height), 0.0, label)
         } else {
-            let (t, _) = one_thread(|| photon_core::render::render_strip(&prep, 0..rows, &|_| {}));
+            let (t, _) = one_thread(|| photon_core::render::render_rows(&prep, 0..rows, &|_| {}));
             let per_row_spp = t / f64::from(rows);
             let spp = (target_s * lab_speed / (per_row_spp * f64::from(height))).round().max(1.0);
-            (height, per_row_spp * spp, 0.0, 12.0 * f64::from(width), format!("{spp} spp"))
+            // A strip's sums: 3 × i64 per pixel.
+            (height, per_row_spp * spp, 0.0, 24.0 * f64::from(width), format!("{spp} spp"))
         };
         let cuts: Vec<u32> = if integrator.renders_passes() {
             let default = photon_coordinator::scheduler::passes_per_block_for(units, lab.len() as u32);

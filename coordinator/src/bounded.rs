@@ -35,7 +35,7 @@
 //! pass of squared radius `r_i²` is `c·r_i²` for a smooth radiance (Hachisuka, Ogaki & Jensen 2008, §4.3), with
 //! a per-pixel `c`. The render is also split in time at the round end nearest `K/2`: the first part's mean minus
 //! the second's is `D = c(m₁ − m₂) + noise`, where `m₁`, `m₂` are the parts' mean `r²/r₀²`
-//! ([`photon_core::render::progressive::radius_power_sum`]); the whole render's bias is `c·m`, so its square is
+//! ([`photon_core::render::radius::radius_power_sum`]); the whole render's bias is `c·m`, so its square is
 //! estimated as `(m / (m₁ − m₂))² (D² − Var D)`, with `Var D` from σ² above. This is a two-level extrapolation
 //! (Richardson) of the bias model, not the Laplacian estimate of Hachisuka, Jarosz & Jensen 2010; at edges and
 //! caustic boundaries, where the bias grows as `r` rather than `r²`, it errs low (measured in docs/RESULTS.md).
@@ -50,7 +50,8 @@
 //! tracer stopped at a fifth of the samples its target needed). The bias term is summed over the image before it
 //! is clamped at 0.
 
-use photon_core::render::progressive::{PassAccumulator, SUM_FRACTION_BITS, radius_power_sum};
+use photon_core::render::radius::radius_power_sum;
+use photon_core::render::sums::{SUM_FRACTION_BITS, SumAccumulator};
 use std::ops::Range;
 use std::time::{Duration, Instant};
 
@@ -152,7 +153,7 @@ pub struct Rounds {
     /// Seconds and passes of the last completed round.
     last: Option<(f64, u32)>,
     /// Fixed-point sums of the blocks of the round in flight.
-    sums: PassAccumulator,
+    sums: SumAccumulator,
     estimate: ErrorEstimate,
     last_estimate: Option<f64>,
     stopped: Option<StopReason>,
@@ -170,7 +171,7 @@ impl Rounds {
             ends: Vec::new(),
             current: 0,
             last: None,
-            sums: PassAccumulator::new(values, 1),
+            sums: SumAccumulator::new(values, 1),
             estimate,
             last_estimate: None,
             stopped: None,
@@ -229,7 +230,7 @@ impl Rounds {
 
     /// Ends the round in flight: its sums join `image`. Returns the new error estimate when the render
     /// estimates one.
-    pub fn end_round(&mut self, image: &mut PassAccumulator) -> Option<f64> {
+    pub fn end_round(&mut self, image: &mut SumAccumulator) -> Option<f64> {
         image.absorb(&mut self.sums);
         let passes = self.passes() + self.current;
         self.ends.push(passes);
@@ -339,7 +340,7 @@ fn plan_round(s: &RoundState) -> Result<RoundPlan, StopReason> {
     // Even counts, so that every block starts at an even pass and holds whole pairs (see `half_of`).
     let passes = ((passes.round() as u32).max(2) & !1).min(left);
     let per_block =
-        passes.div_ceil(blocks).next_multiple_of(2).clamp(2, photon_core::render::progressive::MAX_BLOCK_PASSES - 1);
+        passes.div_ceil(blocks).next_multiple_of(2).clamp(2, photon_core::render::sums::MAX_BLOCK_UNITS - 1);
     Ok(RoundPlan { passes, per_block })
 }
 

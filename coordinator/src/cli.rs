@@ -5,8 +5,8 @@ use crate::fleet;
 use crate::overrides::Setting;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use photon_core::method::Method;
 use photon_core::metrics::Region;
-use photon_core::scene::Integrator;
 use std::path::PathBuf;
 
 /// A distributed photon-mapping renderer.
@@ -49,7 +49,7 @@ pub(crate) struct RenderArgs {
     /// photon merges weighted by MIS, in passes), `bdpt` (bidirectional path tracing: vcm without merging) or
     /// `lt` (light tracing: light subpaths connected to the camera only).
     #[arg(long)]
-    pub(crate) integrator: Option<Integrator>,
+    pub(crate) integrator: Option<Method>,
     /// Seed (overrides the scene's `render.seed`).
     #[arg(long)]
     pub(crate) seed: Option<u64>,
@@ -258,7 +258,7 @@ pub(crate) struct SweepArgs {
     /// Methods, comma-separated: `path`, `direct`, `photon-map`, `final-gather`, `progressive`, `vcm`, `bdpt`,
     /// `lt`.
     #[arg(long, value_delimiter = ',', default_value = "path,photon-map,final-gather,progressive")]
-    pub(crate) methods: Vec<Integrator>,
+    pub(crate) methods: Vec<Method>,
     /// Budget multipliers b, comma-separated: path/direct render 4·b spp; photon-map traces 25 000·b global
     /// photons (k fixed, 2 spp); final-gather 25 000·b global and caustic photons (2 spp); progressive, vcm, bdpt
     /// and lt 4·b passes.

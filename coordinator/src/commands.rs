@@ -13,9 +13,10 @@ use crate::report::{Summary, print_workers};
 use crate::sweep::{self, sig};
 use anyhow::{Context, Result, bail};
 use photon_core::image_io::{Format, Image};
+use photon_core::method::Method;
 use photon_core::metrics::{self, Metrics};
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -220,7 +221,7 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
     if args.spp.is_some() || args.passes.is_some() {
         bail!("--spp and --passes fix the samples; --time and --target-error choose them: give one or the other");
     }
-    if args.target_error.is_some() && matches!(r.integrator, Integrator::PhotonMap | Integrator::FinalGather) {
+    if args.target_error.is_some() && !r.integrator.error_falls_with_units() {
         bail!(
             "--target-error needs an error that more samples lower; `{}` keeps the bias of its photon maps \
              (their count is fixed before the render): use `progressive`, `vcm` or `path`, or bound it with --time",
@@ -236,11 +237,11 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         deadline: args.time.map(|t| t0 + t),
         target_error: args.target_error,
         // The gather (merge) radius of progressive photon mapping and vcm shrinks with α; bdpt and lt are unbiased.
-        bias_alpha: matches!(r.integrator, Integrator::Progressive | Integrator::Vcm).then_some(r.photons.alpha),
+        bias_alpha: r.integrator.bias_alpha(r.photons.alpha),
         passes: None,
         // The methods whose error more samples lower estimate it after every round, for the summary and the
         // live page, whether or not a target stops them.
-        estimate: !r.integrator.needs_photon_maps(),
+        estimate: r.integrator.error_falls_with_units(),
     }))
 }
 
@@ -262,7 +263,7 @@ pub struct Interrupted {
 /// Keeps the finished strips of a failed or interrupted render in the partial file beside the output, and prints
 /// the command that resumes it. A fatal failure is not resumable: no worker of this build can render that strip,
 /// so it is reported as a bug of `method`, with no partial file and no `--resume` hint.
-fn fail_keeping_partial(output: &Path, e: FarmError, method: Integrator) -> Result<()> {
+fn fail_keeping_partial(output: &Path, e: FarmError, method: Method) -> Result<()> {
     if let FarmError::Fatal { workers, .. } = &e {
         print_workers(workers);
         bail!(
@@ -274,8 +275,8 @@ fn fail_keeping_partial(output: &Path, e: FarmError, method: Integrator) -> Resu
         return Err(e.into());
     };
     let path = partial_path(output);
-    let done = partial.strips.len();
-    let units = if partial.pass_sums.is_some() { "pass blocks" } else { "strips" };
+    let done = partial.done.len();
+    let units = if method.renders_passes() { "pass blocks" } else { "strips or sample blocks" };
     partial.write(&path)?;
     if let FarmError::NoWorkers { workers, .. } | FarmError::Interrupted { workers, .. } = &e {
         print_workers(workers);
@@ -354,13 +355,10 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     let budget = if choice.integrator.renders_passes() { Setting::Passes(args.passes) } else { Setting::Spp(args.spp) };
     let settings = [size.as_slice(), &[Setting::Integrator(choice.integrator), Setting::Seed(args.seed), budget]];
     let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
-    let budget = match budget {
-        Setting::Passes(n) if choice.integrator == Integrator::Progressive => {
-            format!("{n} passes of {} photon paths", scene.render.photons.pass_photons)
-        }
-        Setting::Passes(n) => format!("{n} passes"),
-        _ => format!("{} spp", args.spp),
-    };
+    let (w, h) = (scene.camera.width, scene.camera.height);
+    let units = scene.render.units();
+    let budget =
+        choice.integrator.work_words(units, u64::from(w) * u64::from(h), scene.render.photons.pass_photons, false);
     fits_in_memory(&scene, None, false)?;
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
     let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
@@ -535,7 +533,7 @@ mod tests {
         use clap::Parser as _;
         let sweep = ["photon-coordinator", "sweep", "s.toml", "--reference", "r.exr", "--methods", "vcm,bdpt,lt"];
         let Command::Sweep(args) = Cli::try_parse_from(sweep).unwrap().command else { unreachable!("a sweep") };
-        assert_eq!(args.methods, [Integrator::Vcm, Integrator::Bdpt, Integrator::Lt]);
+        assert_eq!(args.methods, [Method::Vcm, Method::Bdpt, Method::Lt]);
         let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nwidth = 8\nheight = 8\n";
         let methods = [("progressive", true), ("vcm", true), ("bdpt", false), ("lt", false), ("path", false)];
         for (method, biased) in methods {

@@ -1,9 +1,12 @@
 //! Rendering a prepared job on workers over gRPC: schedule strips, validate and assemble them, survive workers
 //! that fail.
 //!
-//! The units are strips of rows, or for progressive photon mapping whole-image **pass blocks**: each block's
-//! passes are traced once in the whole farm, and its fixed-point sums are added exactly, in any order
-//! ([`PassAccumulator`]), so the image does not depend on the blocks, the workers or their speed.
+//! Every unit of work is a block of units (samples or passes) over rows, and comes back as fixed-point sums
+//! ([`photon_core::render::sums`]). The farm cuts one axis: strips of rows that each take every unit of the job
+//! (the methods whose unit is a sample), or whole-image blocks of units (the methods that render in passes,
+//! and every render bounded by time or error), whose passes are traced once in the whole farm. The sums are
+//! added exactly, in any order ([`SumAccumulator`]), so the image does not depend on the cut, the workers or
+//! their speed.
 //!
 //! One task per worker opens a [`session`] (connect, hello, ship the blobs it lacks); one task per
 //! strip in flight asks for it and checks what comes back. They report to a single loop that owns the `Farm`
@@ -30,10 +33,8 @@ use crate::report::{Warning, WorkerReport, progress_bar};
 use crate::scheduler::{
     Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
 };
-use crate::session::{
-    self, Client, Delivered, Ready, SessionError, StripData, StripError, StripResult, WorkerAddr, fetch_strip,
-};
-use photon_core::render::progressive::PassAccumulator;
+use crate::session::{self, Client, Delivered, Ready, SessionError, StripError, StripResult, WorkerAddr, fetch_strip};
+use photon_core::render::sums::SumAccumulator;
 use photon_proto::pb;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -252,11 +253,9 @@ struct Farm<'a> {
     rows_per_strip: u32,
     sched: Scheduler,
     members: Vec<Member>,
-    /// Linear RGB, row-major (strips).
-    image: Vec<f32>,
-    /// The sums of the pass blocks accepted so far (progressive photon mapping).
-    passes: Option<PassAccumulator>,
-    /// Rows of finished strips (first row → end), for the partial file.
+    /// The fixed-point sums of the units accepted so far (3 per pixel, row-major, of the whole image).
+    image: SumAccumulator,
+    /// Rows of finished strips, or units of finished blocks (first → end), for the partial file.
     done_rows: BTreeMap<u32, u32>,
     /// Strip calls in flight; aborting one cancels the strip on its worker.
     tasks: BTreeMap<(WorkerId, StripId), AbortHandle>,
@@ -306,11 +305,12 @@ impl<'a> Farm<'a> {
             (None, None, Some(passes), _) => crate::scheduler::passes_per_block_for(passes, n),
             (None, None, None, _) => crate::scheduler::rows_per_strip_for(job.height, n),
         };
-        // Progressive photon mapping (and a bounded render) schedules its passes as the scheduler's "rows".
-        let (units, image, passes) = match (job.passes, first) {
-            (Some(_), Some(plan)) => (plan.passes, Vec::new(), Some(PassAccumulator::new(pixels, 1))),
-            (Some(p), None) => (p, Vec::new(), Some(PassAccumulator::new(pixels, p))),
-            (None, _) => (job.height, vec![0.0f32; pixels], None),
+        // The scheduler cuts one axis: the units of whole-image blocks (the methods that render in passes, and a
+        // bounded render), or the rows of strips that each take every unit of the job.
+        let (axis, image) = match (job.passes, first) {
+            (Some(_), Some(plan)) => (plan.passes, SumAccumulator::new(pixels, 1)),
+            (Some(p), None) => (p, SumAccumulator::new(pixels, p)),
+            (None, _) => (job.height, SumAccumulator::new(pixels, job.units)),
         };
         let members = workers
             .iter()
@@ -332,10 +332,9 @@ impl<'a> Farm<'a> {
             job,
             t0,
             rows_per_strip,
-            sched: Scheduler::with_policy(units, rows_per_strip, options.policy.clone()),
+            sched: Scheduler::with_policy(axis, rows_per_strip, options.policy.clone()),
             members,
             image,
-            passes,
             done_rows: BTreeMap::new(),
             tasks: BTreeMap::new(),
             rays: 0,
@@ -372,38 +371,17 @@ impl<'a> Farm<'a> {
                     .into(),
             ));
         }
-        if self.passes.is_some() {
-            // Every block must fit this render's cut: their sums cannot be taken apart.
-            let blocks: Option<Vec<(StripId, Range<u32>)>> =
-                p.strips.iter().map(|(first, _)| self.unit_starting_at(*first)).collect();
-            let restored = match (&mut self.passes, &p.pass_sums) {
-                (Some(acc), Some(sums)) => acc.restore(sums),
-                _ => false,
-            };
-            let Some(blocks) = blocks.filter(|_| restored) else {
-                return Err(FarmError::Resume(
-                    "the partial file's pass blocks do not fit this render: render without --resume".into(),
-                ));
-            };
-            for (id, passes) in blocks {
-                if self.sched.mark_done(id) {
-                    self.done_rows.insert(passes.start, passes.end);
-                    self.resumed += 1;
-                }
-            }
-            return Ok(());
-        }
-        let width = job.width as usize;
-        for (first_row, pixels) in &p.strips {
-            let Some((id, rows)) = self.unit_starting_at(*first_row) else { continue };
-            let len = 3 * width * rows.len();
-            if pixels.len() != len {
-                continue;
-            }
-            let at = 3 * width * rows.start as usize;
-            self.image[at..at + len].copy_from_slice(pixels);
+        // Every unit must fit this render's cut: their sums cannot be taken apart.
+        let units: Option<Vec<(StripId, Range<u32>)>> =
+            p.done.iter().map(|&first| self.unit_starting_at(first)).collect();
+        let Some(units) = units.filter(|_| self.image.restore(&p.sums)) else {
+            return Err(FarmError::Resume(
+                "the partial file's finished units do not fit this render: render without --resume".into(),
+            ));
+        };
+        for (id, range) in units {
             if self.sched.mark_done(id) {
-                self.done_rows.insert(rows.start, rows.end);
+                self.done_rows.insert(range.start, range.end);
                 self.resumed += 1;
             }
         }
@@ -448,9 +426,8 @@ impl<'a> Farm<'a> {
     /// A bounded render whose round is complete: its sums join the image, and the next round is queued, or the
     /// render ends.
     fn next_round(&mut self) -> Option<Result<(), Stop>> {
-        // A bound on a job of strips (no pass blocks, against `Options::bound`'s contract) ends with its strips.
-        let (Some(rounds), Some(image)) = (self.rounds.as_mut(), self.passes.as_mut()) else { return Some(Ok(())) };
-        let estimate = rounds.end_round(image);
+        let Some(rounds) = self.rounds.as_mut() else { return Some(Ok(())) };
+        let estimate = rounds.end_round(&mut self.image);
         tracing::info!(passes = rounds.passes(), rounds = rounds.completed(), ?estimate, "round complete");
         if let (Some(board), Some(e)) = (&self.live, estimate) {
             board.push_error(self.t0.elapsed().as_secs_f64(), e);
@@ -576,7 +553,7 @@ impl<'a> Farm<'a> {
 
     /// A valid strip or pass block: the first copy wins and the others are cancelled.
     fn on_result(&mut self, worker: WorkerId, strip: StripId, attempt: u32, result: StripResult, now: Duration) {
-        let StripResult { data, summary } = result;
+        let StripResult { sums, summary } = result;
         // Maps a worker traced for itself count whichever copy of a strip reports them (the worker traced them
         // once, for the job); a pass block's photons count only when the block is accepted, so that their total
         // is the job's.
@@ -591,26 +568,20 @@ impl<'a> Farm<'a> {
         }
         if let Completion::Accepted { cancel } = completion {
             tracing::info!(worker = %m.addr.name, %strip, "accepted");
-            self.accept(strip, data, summary.rays, cancel);
+            self.accept(strip, sums, summary.rays, cancel);
         }
     }
 
-    /// Adds an accepted strip or pass block (which traced `rays`) to the image, and cancels its other copies.
-    fn accept(&mut self, strip: StripId, data: StripData, rays: u64, cancel: Vec<(WorkerId, StripId)>) {
-        if let Some(rows) = self.sched.strip_rows(strip) {
-            match (data, &mut self.passes) {
-                (StripData::Sums(sums), Some(acc)) => match &mut self.rounds {
-                    Some(rounds) => rounds.add_block(strip.0, rows.len() as u32, &sums),
-                    None => acc.add(&sums),
-                },
-                (StripData::Pixels(pixels), None) => {
-                    let at = 3 * self.job.width as usize * rows.start as usize;
-                    self.image[at..at + pixels.len()].copy_from_slice(&pixels);
-                }
-                // fetch_strip returns the kind the request asked for, and the request follows the job.
-                _ => unreachable!("a strip's values are of the kind its job renders"),
+    /// Adds the sums of an accepted strip or block (which traced `rays`) to the image, and cancels its other
+    /// copies. A strip's sums land at its first row; a whole-image block's at the first pixel, or in its round.
+    fn accept(&mut self, strip: StripId, sums: Vec<i64>, rays: u64, cancel: Vec<(WorkerId, StripId)>) {
+        if let Some(range) = self.sched.strip_rows(strip) {
+            match (&mut self.rounds, self.job.passes) {
+                (Some(rounds), _) => rounds.add_block(strip.0, range.len() as u32, &sums),
+                (None, Some(_)) => self.image.add(&sums),
+                (None, None) => self.image.add_at(3 * self.job.width as usize * range.start as usize, &sums),
             }
-            self.done_rows.insert(rows.start, rows.end);
+            self.done_rows.insert(range.start, range.end);
         }
         self.rays += rays;
         self.cancel(cancel);
@@ -719,10 +690,9 @@ impl<'a> Farm<'a> {
         let stop = match result {
             Ok(()) => {
                 let bounded = self.rounds.as_ref().map(crate::bounded::Rounds::report);
-                let pixels = match (&self.passes, &bounded) {
-                    (Some(acc), Some(b)) => acc.image_of(b.passes),
-                    (Some(acc), None) => acc.image(),
-                    (None, _) => self.image,
+                let pixels = match &bounded {
+                    Some(b) => self.image.image_of(b.passes),
+                    None => self.image.image(),
                 };
                 let (rays, photon_paths, resumed) = (self.rays, self.photon_paths, self.resumed);
                 return Ok(Outcome { pixels, rays, photon_paths, workers, ship_s, render_s, resumed, bounded });
@@ -747,28 +717,16 @@ impl<'a> Farm<'a> {
         }
     }
 
-    /// The finished strips or pass blocks, for `--resume`.
+    /// The finished units and their sums, for `--resume`.
     fn partial(&self) -> Partial {
-        let width = self.job.width as usize;
-        let strips = self
-            .done_rows
-            .iter()
-            .map(|(&start, &end)| match self.passes {
-                Some(_) => (start, Vec::new()),
-                None => {
-                    let (lo, hi) = (3 * width * start as usize, 3 * width * end as usize);
-                    (start, self.image[lo..hi].to_vec())
-                }
-            })
-            .collect();
         let job = self.job;
         Partial {
             fingerprint: job.fingerprint(),
             width: job.width,
             height: job.height,
             rows_per_strip: self.rows_per_strip,
-            strips,
-            pass_sums: self.passes.as_ref().map(|acc| acc.sums().to_vec()),
+            done: self.done_rows.keys().copied().collect(),
+            sums: self.image.sums().to_vec(),
         }
     }
 
@@ -784,7 +742,7 @@ impl<'a> Farm<'a> {
                 }
                 let busy = s.busy.as_secs_f64().max(1e-3);
                 let done = (s.rows + m.rows_live) as f64;
-                match self.passes {
+                match self.job.passes {
                     Some(_) => format!("{} {:.2} passes/s", m.addr.name, done / busy),
                     None => format!("{} {:.2} Mpx/s", m.addr.name, done * f64::from(self.job.width) / 1e6 / busy),
                 }
@@ -805,7 +763,7 @@ impl<'a> Farm<'a> {
                 let (strips, busy_s, rows, failures) =
                     stats.map_or((0, 0.0, 0, 0), |s| (s.strips, s.busy.as_secs_f64(), s.rows, s.failures));
                 // A pass block covers every row of the image once per pass.
-                let rows = if self.passes.is_some() { rows * u64::from(self.job.height) } else { rows };
+                let rows = if self.job.passes.is_some() { rows * u64::from(self.job.height) } else { rows };
                 let state = match (&m.out, stats) {
                     (Some(why), _) => why.clone(),
                     (None, Some(s)) => match &s.state {
@@ -849,17 +807,17 @@ impl<'a> Farm<'a> {
         let (done, total) = self.sched.progress();
         let (job, passes_done) = (self.job, self.done_rows.iter().map(|(a, b)| b - a).sum::<u32>());
         let preview = board.wants_preview(done, force).then(|| {
-            let (pixels, gain) = match (&self.passes, job.passes, &self.rounds) {
+            let (pixels, gain) = match (job.passes, &self.rounds) {
                 // A bounded render's image holds its completed rounds.
-                (Some(acc), _, Some(rounds)) => (acc.image_of(rounds.passes()), 1.0),
-                (Some(acc), Some(all), None) => (acc.image(), all as f32 / passes_done.max(1) as f32),
-                _ => (self.image.clone(), 1.0),
+                (_, Some(rounds)) => (self.image.image_of(rounds.passes()), 1.0),
+                (Some(all), None) => (self.image.image(), all as f32 / passes_done.max(1) as f32),
+                (None, None) => (self.image.image(), 1.0),
             };
             Preview { image: photon_core::image_io::Image { width: job.width, height: job.height, pixels }, gain }
         });
         let render_s = self.first_ready.map_or(0.0, |t| t.elapsed().as_secs_f64());
         // Pixels of one scheduler "row": a row of the image, or a pass over all of it.
-        let px = f64::from(job.width) * if self.passes.is_some() { f64::from(job.height) } else { 1.0 };
+        let px = f64::from(job.width) * if job.passes.is_some() { f64::from(job.height) } else { 1.0 };
         let workers = (self.reports().into_iter().zip(&self.members).enumerate())
             .map(|(i, (r, m))| LiveWorker {
                 state: live::worker_state(m.out.as_deref(), self.sched.worker_stats(WorkerId(i as u32))),
@@ -881,7 +839,7 @@ impl<'a> Farm<'a> {
                 Some(rounds) => rounds.remaining().map(|d| d.as_secs_f64()),
                 None => live::eta_s(render_s, done - self.resumed.min(done), total - done),
             },
-            units: if self.passes.is_some() { "pass blocks" } else { "strips" }.into(),
+            units: if job.passes.is_some() { "pass blocks" } else { "strips" }.into(),
             done,
             total,
             unit_states: live::unit_states(&self.sched),
@@ -898,10 +856,10 @@ impl<'a> Farm<'a> {
 
 /// Starts the call of one assigned strip; its result comes back as an [`Event::Strip`].
 fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: UnboundedSender<Event>) -> AbortHandle {
-    // A pass block covers the whole image; the scheduler's "rows" are its passes.
-    let (rows, passes) = match job.passes {
+    // A block covers the whole image and the scheduler cuts its units; a strip takes every unit of its rows.
+    let (rows, units) = match job.passes {
         Some(_) => (0..job.height, a.rows.clone()),
-        None => (a.rows.clone(), 0..0),
+        None => (a.rows.clone(), 0..job.units),
     };
     let request = pb::StripRequest {
         scene_blob: job.scene_blob.clone(),
@@ -911,15 +869,19 @@ fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: U
         row_end: rows.end,
         strip: a.strip.0,
         attempt: a.attempt,
-        pass_start: passes.start,
-        pass_end: passes.end,
+        unit_start: units.start,
+        unit_end: units.end,
         trace_photons: job.trace_photons,
         texture_blobs: job.texture_blobs.clone(),
     };
-    let (strip, attempt, width) = (a.strip, a.attempt, job.width);
+    let (strip, attempt, width, job_by_rows) = (a.strip, a.attempt, job.width, job.passes.is_none());
     let progress_tx = tx.clone();
     let handle = tokio::spawn(async move {
-        let progress = |rows| {
+        // The worker counts units done; a strip's progress is counted in its rows.
+        let (strip_rows, block_units) = (rows.len() as u64, u64::from(units.len() as u32).max(1));
+        let by_rows = job_by_rows;
+        let progress = |units_done: u32| {
+            let rows = if by_rows { (u64::from(units_done) * strip_rows / block_units) as u32 } else { units_done };
             let _ = progress_tx.send(Event::Progress { worker, rows });
         };
         let result = fetch_strip(client, request, width, progress).await;

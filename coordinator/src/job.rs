@@ -84,9 +84,12 @@ pub struct Job {
     /// deterministic photon streams ([`crate::delivery`]).
     pub trace_photons: bool,
     /// The pass count when the method renders in passes (progressive, vcm, bdpt, lt: see
-    /// [`photon_core::scene::Integrator::renders_passes`]): the farm then hands out whole-image pass
+    /// [`photon_core::method::Method::renders_passes`]): the farm then hands out whole-image pass
     /// blocks ([`crate::scheduler::passes_per_block_for`]) instead of strips of rows.
     pub passes: Option<u32>,
+    /// The units of the whole job ([`photon_core::scene::RenderSettings::units`]): what each strip of rows
+    /// renders when the farm cuts rows.
+    pub units: u32,
     /// The workers pass big blobs among themselves (`--photon-maps peers`) instead of each receiving them
     /// from the coordinator.
     pub swarm: Option<Arc<crate::swarm::Swarm>>,
@@ -123,6 +126,7 @@ impl Job {
             width,
             height,
             passes,
+            units: settings.units(),
             trace_photons,
             swarm: None,
         }
@@ -158,14 +162,13 @@ pub struct Partial {
     pub width: u32,
     /// Image height.
     pub height: u32,
-    /// The strip height the render used, or the passes per block for the methods that render in passes (a
-    /// resumed render cuts the work the same way).
+    /// The strip height the render used, or the units per block for a cut of whole-image blocks (a resumed
+    /// render cuts the work the same way).
     pub rows_per_strip: u32,
-    /// Finished strips: (first row, pixels of whole rows). For the methods that render in passes: (first pass of
-    /// each finished block, no pixels), their sums being in `pass_sums`.
-    pub strips: Vec<(u32, Vec<f32>)>,
-    /// The methods that render in passes: the fixed-point sums of the finished blocks (3 per pixel, row-major).
-    pub pass_sums: Option<Vec<i128>>,
+    /// The first row of each finished strip, or the first unit of each finished block.
+    pub done: Vec<u32>,
+    /// The fixed-point sums of the finished units (3 per pixel, row-major, of the whole image).
+    pub sums: Vec<i128>,
 }
 
 /// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes in BVH

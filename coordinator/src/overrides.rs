@@ -5,7 +5,7 @@
 //! ([`photon_core::scene::Scene::load_with`]), so the scene file's parser and validation are the one source of
 //! truth for what a setting may be. The sweep's budgets become pairs the same way.
 
-use photon_core::scene::Integrator;
+use photon_core::method::Method;
 
 /// One overridden setting.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -13,7 +13,7 @@ pub enum Setting {
     /// `--spp N`: `render.spp`.
     Spp(u32),
     /// `--integrator M`: `render.integrator`, by its scene-file name (`photon-map`).
-    Integrator(Integrator),
+    Integrator(Method),
     /// `--seed N`: `render.seed`.
     Seed(u64),
     /// `--size WxH`: `camera.width` and `camera.height`.
@@ -77,7 +77,7 @@ mod tests {
     #[test]
     fn flags_become_set_pairs_after_the_users() {
         let set = vec!["render.spp=2".to_owned()];
-        let got = pairs(&set, &[Setting::Spp(64), Setting::Integrator(Integrator::PhotonMap), Setting::Size(4, 3)]);
+        let got = pairs(&set, &[Setting::Spp(64), Setting::Integrator(Method::PhotonMap), Setting::Size(4, 3)]);
         assert_eq!(
             got,
             ["render.spp=2", "render.spp=64", "render.integrator=\"photon-map\"", "camera.width=4", "camera.height=3"]

@@ -4,7 +4,8 @@
 use crate::delivery::MapDelivery;
 use crate::farm::Outcome;
 use crate::prepared_cache::Hits;
-use photon_core::scene::{Integrator, RenderSettings};
+use photon_core::method::{PassStorage, StaticMaps};
+use photon_core::scene::RenderSettings;
 use std::fmt;
 use std::path::Path;
 
@@ -122,28 +123,23 @@ impl Summary<'_> {
         // others take `spp`. A bounded render took as many as its completed rounds hold.
         let ph = &settings.photons;
         let (spp, passes) = outcome.bounded.as_ref().map_or((settings.spp, ph.passes), |b| (b.passes, b.passes));
-        let mut samples = match settings.integrator {
-            Integrator::Progressive => format!(
-                "{passes} passes of {} photon paths ({} paths traced on the workers)",
-                ph.pass_photons, outcome.photon_paths
-            ),
-            // One light subpath per pixel and pass; in a scene with media the passes are the volumetric path
-            // tracer's samples, and no light path is traced.
-            Integrator::Vcm | Integrator::Bdpt | Integrator::Lt if outcome.photon_paths == 0 && passes > 0 => {
-                format!("{passes} passes of path-traced samples (the scene has participating media)")
+        let method = settings.integrator;
+        let units = if method.renders_passes() { passes } else { spp };
+        // One light subpath per pixel and pass; in a scene with media a subpath method's passes are the
+        // volumetric path tracer's samples, and no light path is traced.
+        let media = outcome.photon_paths == 0 && passes > 0;
+        let mut samples = method.work_words(units, u64::from(width) * u64::from(height), ph.pass_photons, media);
+        match (method.pass_storage(), method.static_maps(), self.delivery) {
+            (PassStorage::PhotonMap, _, _) => {
+                samples.push_str(&format!(" ({} paths traced on the workers)", outcome.photon_paths));
             }
-            Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
-                format!("{passes} passes of {} light paths", u64::from(width) * u64::from(height))
+            (_, StaticMaps::None, _) => {}
+            (_, _, Some(d)) if d.mode == MapDelivery::Trace => {
+                samples.push_str(&format!(", photon maps {d}: {} paths traced on the workers", outcome.photon_paths));
             }
-            Integrator::PhotonMap | Integrator::FinalGather => match self.delivery {
-                Some(d) if d.mode == MapDelivery::Trace => {
-                    format!("{spp} spp, photon maps {d}: {} paths traced on the workers", outcome.photon_paths)
-                }
-                Some(d) => format!("{spp} spp, photon maps of {} paths {d}", ph.global),
-                None => format!("{spp} spp, photon maps of {} paths traced here", ph.global),
-            },
-            _ => format!("{spp} spp"),
-        };
+            (_, _, Some(d)) => samples.push_str(&format!(", photon maps of {} paths {d}", ph.global)),
+            (_, _, None) => samples.push_str(&format!(", photon maps of {} paths traced here", ph.global)),
+        }
         if let Some(b) = &outcome.bounded {
             samples.push_str(&format!(" in {} rounds, stopped {}", b.rounds, b.reason));
             if let Some(e) = b.rel_mse_estimate {

@@ -5,6 +5,7 @@
 
 use crate::job::Job;
 use crate::scheduler::StripFailure;
+use photon_core::render::sums::{BlockSumsError, check_sums};
 use photon_proto::pb::render_client::RenderClient;
 use photon_proto::pb::{self, strip_event::Event as WireEvent};
 use std::sync::Arc;
@@ -411,35 +412,18 @@ pub enum StripError {
     /// The pixels do not hash to the worker's checksum.
     #[error("checksum mismatch: the pixels changed after the worker hashed them")]
     ChecksumMismatch,
-    /// A value that no radiance can have (negative or not finite), in pixels that hash to the worker's
-    /// checksum: the worker's renderer computed it, and every worker of this build would compute it again.
-    #[error("pixel ({x}, {y}) holds {value}: not a radiance")]
-    NotRadiance {
-        /// Column.
-        x: u32,
-        /// Row.
-        y: u32,
-        /// The value.
-        value: f32,
-    },
-    /// A pass sum that no block of this many passes can add up to, in values that hash to the worker's checksum:
-    /// as for [`StripError::NotRadiance`], the build itself computed it.
-    #[error("pixel ({x}, {y}) holds the pass sum {value}: not the sum of {passes} passes")]
-    NotPassSum {
+    /// A sum that no block of this many units can add up to, in values that hash to the worker's checksum:
+    /// the worker's renderer computed it, and every worker of this build would compute it again.
+    #[error("pixel ({x}, {y}) holds the sum {value}: not the sum of {units} units")]
+    NotASum {
         /// Column.
         x: u32,
         /// Row.
         y: u32,
         /// The sum.
         value: i64,
-        /// Passes in the block.
-        passes: u32,
-    },
-    /// Pixels where pass sums were asked for, or the other way round.
-    #[error("the worker sent {} where {} were asked for", if *sums { "pixels" } else { "pass sums" }, if *sums { "pass sums" } else { "pixels" })]
-    WrongKind {
-        /// Whether pass sums were asked for.
-        sums: bool,
+        /// Units in the block.
+        units: u32,
     },
     /// A message with no event.
     #[error("an empty event")]
@@ -460,12 +444,7 @@ impl StripError {
     /// Another attempt could succeed; `false` when the job itself cannot render (another worker would fail the
     /// same way).
     pub fn retryable(&self) -> bool {
-        !matches!(
-            self,
-            Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. }
-                | Self::NotRadiance { .. }
-                | Self::NotPassSum { .. }
-        )
+        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. } | Self::NotASum { .. })
     }
 
     /// The failure counts against the worker: it misbehaved, rather than being busy or cancelled, or the job
@@ -484,7 +463,7 @@ impl StripError {
                     | Code::DeadlineExceeded
             ),
             // Not the worker's fault: the same build renders the same pixel the same way everywhere.
-            Self::StreamEnded | Self::NotRadiance { .. } | Self::NotPassSum { .. } => false,
+            Self::StreamEnded | Self::NotASum { .. } => false,
             _ => true,
         }
     }
@@ -501,27 +480,18 @@ impl From<tonic::Status> for StripError {
     }
 }
 
-/// What a worker sent back for one strip: its values and the worker's summary.
+/// What a worker sent back for one strip: its block sums and the worker's summary.
 #[derive(Clone, Debug)]
 pub struct StripResult {
-    /// The values.
-    pub data: StripData,
+    /// Per pixel channel of the strip's rows (3 per pixel, row-major), the sum over the block's units of the
+    /// fixed-point estimate ([`photon_core::render::sums`]).
+    pub sums: Vec<i64>,
     /// Rays, photon paths and seconds, as the worker reported them (the checksum already checked).
     pub summary: pb::StripSummary,
 }
 
-/// The values of a strip.
-#[derive(Clone, Debug)]
-pub enum StripData {
-    /// Linear RGB radiance, 3 floats per pixel, row-major.
-    Pixels(Vec<f32>),
-    /// Progressive photon mapping's fixed-point pass sums, 3 per pixel, row-major.
-    Sums(Vec<i64>),
-}
-
-/// Asks `client` for one strip (rows, or a pass block over rows) and validates what comes back: whole rows in
-/// order, the right length, the checksum, and values that a renderer can produce (finite non-negative
-/// radiance, or pass sums within their range).
+/// Asks `client` for one block (units over rows) and validates what comes back: whole rows in order, the right
+/// length, the checksum, and sums that the block's units can add up to.
 pub async fn fetch_strip(
     mut client: Client,
     request: pb::StripRequest,
@@ -529,9 +499,9 @@ pub async fn fetch_strip(
     progress: impl Fn(u32),
 ) -> Result<StripResult, StripError> {
     let (row_start, row_end) = (request.row_start, request.row_end);
-    let block = request.pass_end.saturating_sub(request.pass_start);
+    let units = request.unit_end.saturating_sub(request.unit_start);
     let mut stream = client.render_strip(request).await?.into_inner();
-    let row_bytes = 3 * if block > 0 { 8 } else { 4 } * width as usize;
+    let row_bytes = 3 * 8 * width as usize;
     let expected = row_bytes * (row_end - row_start) as usize;
     let mut bytes: Vec<u8> = Vec::with_capacity(expected);
     loop {
@@ -541,13 +511,11 @@ pub async fn fetch_strip(
             Err(s) => return Err(s.into()),
         };
         let rows = match event.event {
-            Some(WireEvent::RowsDone(n)) => {
+            Some(WireEvent::UnitsDone(n)) => {
                 progress(n);
                 continue;
             }
-            Some(WireEvent::Rows(rows)) if block == 0 => rows,
-            Some(WireEvent::Sums(rows)) if block > 0 => rows,
-            Some(WireEvent::Rows(_) | WireEvent::Sums(_)) => return Err(StripError::WrongKind { sums: block > 0 }),
+            Some(WireEvent::Sums(rows)) => rows,
             Some(WireEvent::Done(summary)) => {
                 if bytes.len() != expected {
                     return Err(StripError::ShortStrip { got: bytes.len(), expected });
@@ -555,12 +523,8 @@ pub async fn fetch_strip(
                 if summary.checksum != photon_proto::checksum(&bytes) {
                     return Err(StripError::ChecksumMismatch);
                 }
-                let data = if block > 0 {
-                    sums_of(&bytes, block, width, row_start)?
-                } else {
-                    pixels_of(&bytes, width, row_start)?
-                };
-                return Ok(StripResult { data, summary });
+                let sums = sums_of(&bytes, units, width, row_start)?;
+                return Ok(StripResult { sums, summary });
             }
             None => return Err(StripError::EmptyEvent),
         };
@@ -580,26 +544,14 @@ fn pixel_of(i: usize, width: u32, row_start: u32) -> (u32, u32) {
     ((i / 3) as u32 % width.max(1), row_start + (i / 3) as u32 / width.max(1))
 }
 
-/// Radiance pixels from checked bytes: every value finite and non-negative.
-fn pixels_of(bytes: &[u8], width: u32, row_start: u32) -> Result<StripData, StripError> {
-    let pixels = photon_proto::bytes_to_pixels(bytes).unwrap_or_default();
-    if let Some(i) = pixels.iter().position(|v| !v.is_finite() || *v < 0.0) {
-        let (x, y) = pixel_of(i, width, row_start);
-        return Err(StripError::NotRadiance { x, y, value: pixels[i] });
-    }
-    Ok(StripData::Pixels(pixels))
-}
-
-/// Pass sums from checked bytes: every value within what `block` passes can add.
-fn sums_of(bytes: &[u8], block: u32, width: u32, row_start: u32) -> Result<StripData, StripError> {
+/// Block sums from checked bytes: every value within what `units` units can add.
+fn sums_of(bytes: &[u8], units: u32, width: u32, row_start: u32) -> Result<Vec<i64>, StripError> {
     let sums = photon_proto::bytes_to_sums(bytes).unwrap_or_default();
-    if let Err(photon_core::render::progressive::PassSumsError::OutOfRange { index, value, .. }) =
-        photon_core::render::progressive::check_sums(&sums, block)
-    {
+    if let Err(BlockSumsError::OutOfRange { index, value, .. }) = check_sums(&sums, units) {
         let (x, y) = pixel_of(index, width, row_start);
-        return Err(StripError::NotPassSum { x, y, value, passes: block });
+        return Err(StripError::NotASum { x, y, value, units });
     }
-    Ok(StripData::Sums(sums))
+    Ok(sums)
 }
 
 #[cfg(test)]
@@ -642,8 +594,8 @@ mod tests {
         }
         assert_eq!(status(Code::Internal).to_string(), "why (Internal)");
         assert!(StripError::StreamEnded.lost());
-        let bad = StripError::NotRadiance { x: 1, y: 2, value: -0.5 };
-        assert_eq!(bad.failure(), StripFailure::fatal("pixel (1, 2) holds -0.5: not a radiance"));
+        let bad = StripError::NotASum { x: 1, y: 2, value: -5, units: 3 };
+        assert_eq!(bad.failure(), StripFailure::fatal("pixel (1, 2) holds the sum -5: not the sum of 3 units"));
         assert!(StripError::ChecksumMismatch.failure().counted);
     }
 }

@@ -12,9 +12,10 @@ use anyhow::{Context, Result};
 use photon_core::image_io::Image;
 use photon_core::light::Light;
 use photon_core::material::Material;
+use photon_core::method::{BudgetSetting, Method};
 use photon_core::metrics;
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::fmt::Write as _;
 use std::path::Path;
 use std::time::Instant;
@@ -33,7 +34,7 @@ pub const PHOTON_METHOD_SPP: u32 = 2;
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct ReferenceChoice {
     /// `path` or `progressive`.
-    pub integrator: Integrator,
+    pub integrator: Method,
     /// One sentence for the user.
     pub reason: String,
 }
@@ -47,7 +48,7 @@ pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
     let specular = prep.materials.iter().any(Material::has_specular);
     if point && specular {
         ReferenceChoice {
-            integrator: Integrator::Progressive,
+            integrator: Method::Progressive,
             reason: "the scene has a point light and a mirror or glass material: the caustics it casts are paths \
                      a path tracer can never complete, so progressive photon mapping (consistent) renders the \
                      reference"
@@ -56,7 +57,7 @@ pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
     } else {
         let why = if point { "no mirror or glass material" } else { "no point light" };
         ReferenceChoice {
-            integrator: Integrator::Path,
+            integrator: Method::Path,
             reason: format!(
                 "{why}: every light path can be found from the camera, so the unbiased path tracer renders the reference"
             ),
@@ -77,24 +78,23 @@ pub struct Budget {
 /// `photon-map` with `BASE_PHOTONS·b` global photons (k unchanged), `final-gather` with `BASE_PHOTONS·b` global
 /// and caustic photons, `progressive`, `vcm`, `bdpt` and `lt` with `BASE_PASSES·b` passes. The photon-map
 /// methods render [`PHOTON_METHOD_SPP`] samples per pixel at every budget. Fails when a value overflows `u32`.
-pub fn budget(method: Integrator, b: u32) -> Result<(Vec<Setting>, Budget)> {
+pub fn budget(method: Method, b: u32) -> Result<(Vec<Setting>, Budget)> {
     let times = |base: u32| base.checked_mul(b).with_context(|| format!("budget {b} × {base} overflows for {method}"));
     let grown = |parameter, value: u32| Budget { parameter, value: u64::from(value) };
-    let (settings, budget) = match method {
-        Integrator::Path | Integrator::Direct => {
+    let (settings, budget) = match method.budget_setting() {
+        BudgetSetting::Spp => {
             let spp = times(BASE_SPP)?;
             (vec![Setting::Spp(spp)], grown("spp", spp))
         }
-        Integrator::PhotonMap => {
+        BudgetSetting::Photons { caustic } => {
             let n = times(BASE_PHOTONS)?;
-            (vec![Setting::Spp(PHOTON_METHOD_SPP), Setting::GlobalPhotons(n)], grown("photons", n))
-        }
-        Integrator::FinalGather => {
-            let n = times(BASE_PHOTONS)?;
-            let settings = vec![Setting::Spp(PHOTON_METHOD_SPP), Setting::GlobalPhotons(n), Setting::CausticPhotons(n)];
+            let mut settings = vec![Setting::Spp(PHOTON_METHOD_SPP), Setting::GlobalPhotons(n)];
+            if caustic {
+                settings.push(Setting::CausticPhotons(n));
+            }
             (settings, grown("photons", n))
         }
-        Integrator::Progressive | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
+        BudgetSetting::Passes => {
             let passes = times(BASE_PASSES)?;
             (vec![Setting::Passes(passes)], grown("passes", passes))
         }
@@ -135,14 +135,10 @@ pub async fn render_timed(
     let textures = prep.encode_textures()?;
     let mut job = crate::job::Job::new(scene_blob, photons, textures, frame, (width, height), &prep.settings);
     let r = &prep.settings;
-    let estimated = match r.integrator {
-        Integrator::Path | Integrator::Direct => Some((r.spp, None)),
-        // The merge radius of vcm shrinks with α as progressive photon mapping's gather radius does: both are
-        // biased; bdpt and lt are not.
-        Integrator::Progressive | Integrator::Vcm => Some((r.photons.passes, Some(r.photons.alpha))),
-        Integrator::Bdpt | Integrator::Lt => Some((r.photons.passes, None)),
-        Integrator::PhotonMap | Integrator::FinalGather => None,
-    };
+    // The methods whose error more units lower estimate it; vcm's merge radius shrinks with α as progressive
+    // photon mapping's gather radius does (both biased), bdpt, lt and the path tracer are unbiased.
+    let estimated =
+        r.integrator.error_falls_with_units().then(|| (r.units(), r.integrator.bias_alpha(r.photons.alpha)));
     if let Some((passes, bias_alpha)) = estimated {
         job.passes = Some(passes.max(1));
         let passes = Some(passes.max(1));
@@ -168,7 +164,7 @@ pub async fn render_timed(
 #[derive(Clone, Debug, PartialEq)]
 pub struct Row {
     /// The method.
-    pub method: Integrator,
+    pub method: Method,
     /// The budget multiplier.
     pub budget: u32,
     /// What the multiplier set.
@@ -210,7 +206,7 @@ pub fn csv(rows: &[Row]) -> String {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Curve {
     /// The method.
-    pub method: Integrator,
+    pub method: Method,
     /// Points sorted by time.
     pub points: Vec<(f64, f64)>,
 }
@@ -417,14 +413,14 @@ pub const REPORT_HTML: &str = "report.html";
 
 /// The files, in the sweep's folder, of `method`'s image at its largest budget and of its error map:
 /// `METHOD.png` and `METHOD-error.png`.
-pub fn image_files(method: Integrator) -> [String; 2] {
+pub fn image_files(method: Method) -> [String; 2] {
     [format!("{}.png", method.name()), format!("{}-error.png", method.name())]
 }
 
 /// Writes `image`, rendered with `method`, into `dir` under the names of [`image_files`]: tone-mapped with
 /// `exposure` as `render` writes a PNG, and the false-colour map of its relative error against `reference`
 /// ([`metrics::error_image`], as `compare --error-image` writes it).
-pub fn write_images(dir: &Path, method: Integrator, image: &Image, reference: &Image, exposure: f32) -> Result<()> {
+pub fn write_images(dir: &Path, method: Method, image: &Image, reference: &Image, exposure: f32) -> Result<()> {
     let [picture, error] = image_files(method).map(|name| dir.join(name));
     let map = metrics::error_image(image, reference)
         .with_context(|| format!("mapping the error of {} against the reference", picture.display()))?;
@@ -732,11 +728,11 @@ mod tests {
     }
 
     fn curve(points: &[(f64, f64)]) -> Curve {
-        Curve { method: Integrator::Path, points: points.to_vec() }
+        Curve { method: Method::Path, points: points.to_vec() }
     }
 
     /// A scene file with default render settings, loaded with the pairs of `method` at budget `b`.
-    fn with_budget(dir: &Path, method: Integrator, b: u32) -> (RenderSettings, Budget) {
+    fn with_budget(dir: &Path, method: Method, b: u32) -> (RenderSettings, Budget) {
         let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nwidth = 8\nheight = 8\n\
                     [materials.white]\ntype = \"lambert\"\n\
                     [[objects]]\ntype = \"sphere\"\ncenter = [0.0, 1.0, 0.0]\nradius = 0.5\nmaterial = \"white\"\n\
@@ -752,22 +748,22 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("photon-sweep-budget-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let k = RenderSettings::default().photons.k;
-        let (s, b) = with_budget(&dir, Integrator::Path, 8);
+        let (s, b) = with_budget(&dir, Method::Path, 8);
         assert_eq!(b, Budget { parameter: "spp", value: 32 });
         assert_eq!(s.spp, 32);
-        let (s, b) = with_budget(&dir, Integrator::PhotonMap, 4);
+        let (s, b) = with_budget(&dir, Method::PhotonMap, 4);
         assert_eq!((b.value, s.photons.global, s.photons.k, s.spp), (100_000, 100_000, k, PHOTON_METHOD_SPP));
-        let (s, _) = with_budget(&dir, Integrator::FinalGather, 2);
+        let (s, _) = with_budget(&dir, Method::FinalGather, 2);
         assert_eq!((s.photons.global, s.photons.caustic), (50_000, 50_000));
-        let (s, b) = with_budget(&dir, Integrator::Progressive, 16);
+        let (s, b) = with_budget(&dir, Method::Progressive, 16);
         assert_eq!((b.value, s.photons.passes), (64, 64));
-        assert_eq!(s.integrator, Integrator::Progressive);
-        for method in [Integrator::Vcm, Integrator::Bdpt, Integrator::Lt] {
+        assert_eq!(s.integrator, Method::Progressive);
+        for method in [Method::Vcm, Method::Bdpt, Method::Lt] {
             let (s, b) = with_budget(&dir, method, 2);
             assert_eq!(b, Budget { parameter: "passes", value: 8 }, "{method}");
             assert_eq!((s.integrator, s.photons.passes), (method, 8));
         }
-        assert!(super::budget(Integrator::Path, u32::MAX).is_err());
+        assert!(super::budget(Method::Path, u32::MAX).is_err());
         let _ = std::fs::remove_dir_all(&dir);
     }
 
@@ -800,7 +796,7 @@ mod tests {
     #[test]
     fn csv_has_a_row_per_render() {
         let row = Row {
-            method: Integrator::Progressive,
+            method: Method::Progressive,
             budget: 2,
             setting: Budget { parameter: "passes", value: 8 },
             seconds: 1.5,
@@ -816,7 +812,7 @@ mod tests {
         assert!(lines[1].ends_with(",1.000000e-1"), "{}", lines[1]);
     }
 
-    fn row(method: Integrator, budget: u32, seconds: f64, rel_mse: f64) -> Row {
+    fn row(method: Method, budget: u32, seconds: f64, rel_mse: f64) -> Row {
         let setting = Budget { parameter: "spp", value: u64::from(4 * budget) };
         Row { method, budget, setting, seconds, rmse: rel_mse.sqrt(), rel_mse, estimated_rel_mse: None }
     }
@@ -825,18 +821,18 @@ mod tests {
     /// budget order.
     fn two_methods() -> Vec<Row> {
         vec![
-            row(Integrator::Path, 1, 1.0, 0.1),
-            row(Integrator::Path, 4, 4.0, 0.025),
-            row(Integrator::Progressive, 4, 8.0, 0.01),
-            row(Integrator::Progressive, 1, 2.0, 0.08),
+            row(Method::Path, 1, 1.0, 0.1),
+            row(Method::Path, 4, 4.0, 0.025),
+            row(Method::Progressive, 4, 8.0, 0.01),
+            row(Method::Progressive, 1, 2.0, 0.08),
         ]
     }
 
     #[test]
     fn the_largest_budget_is_found_whatever_the_order() {
         let rows = two_methods();
-        let top: Vec<(Integrator, u32)> = largest_budgets(&rows).iter().map(|r| (r.method, r.budget)).collect();
-        assert_eq!(top, [(Integrator::Path, 4), (Integrator::Progressive, 4)]);
+        let top: Vec<(Method, u32)> = largest_budgets(&rows).iter().map(|r| (r.method, r.budget)).collect();
+        assert_eq!(top, [(Method::Path, 4), (Method::Progressive, 4)]);
     }
 
     #[test]
@@ -893,8 +889,8 @@ mod tests {
         let reference = Image { width: 4, height: 3, pixels: (0..36).map(|i| i as f32 / 36.0).collect() };
         let mut image = reference.clone();
         image.pixels[5] += 0.3;
-        write_images(&dir, Integrator::FinalGather, &image, &reference, 1.0).unwrap();
-        let [picture, error] = image_files(Integrator::FinalGather);
+        write_images(&dir, Method::FinalGather, &image, &reference, 1.0).unwrap();
+        let [picture, error] = image_files(Method::FinalGather);
         assert_eq!((picture.as_str(), error.as_str()), ("final-gather.png", "final-gather-error.png"));
         let read = |name: &str| image::open(dir.join(name)).unwrap().into_rgb8();
         let png = read(&picture);
@@ -902,7 +898,7 @@ mod tests {
         let map = read(&error);
         assert_eq!(map.into_raw(), metrics::error_image(&image, &reference).unwrap().to_srgb8(0.0));
         let small = Image::new(2, 2);
-        let e = write_images(&dir, Integrator::Path, &small, &reference, 0.0).unwrap_err();
+        let e = write_images(&dir, Method::Path, &small, &reference, 0.0).unwrap_err();
         assert!(format!("{e:#}").contains("path.png") && format!("{e:#}").contains("2x2"), "{e:#}");
         let _ = std::fs::remove_dir_all(&dir);
     }

@@ -35,10 +35,11 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use photon_core::image_io::Image;
+use photon_core::method::Method;
 use photon_core::photon::Kernel;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{GatherMode, Integrator, Scene};
+use photon_core::scene::{GatherMode, Scene};
 
 type Error = Box<dyn std::error::Error>;
 
@@ -238,7 +239,7 @@ fn reference(o: &Options, scene: &Scene) -> Result<Reference, Error> {
         return Ok(Reference { image: img, noise, spp });
     }
     let mut settings = scene.render.clone();
-    settings.integrator = Integrator::Path;
+    settings.integrator = Method::Path;
     settings.spp = o.ref_spp / 2;
     // Streams apart from the tiles' (seed and seed + 1), so the reference's noise is independent of theirs.
     settings.seed = settings.seed.wrapping_add(REFERENCE_SEED_OFFSET);
@@ -287,12 +288,12 @@ fn main() -> Result<(), Error> {
     // Prepare without photons, then build the global map once and time it on its own. A second preparation
     // with the next seed (its own photons and pixel samples) gives every tile an independent twin, for the
     // split of the error into variance and bias.
-    scene.render.integrator = Integrator::Path;
+    scene.render.integrator = Method::Path;
     scene.render.spp = o.spp;
     scene.render.seed = o.seed.unwrap_or(scene.render.seed);
     scene.render.photons.global = o.photons;
     let mut prep = Prepared::new(&scene, &o.scene)?;
-    prep.settings.integrator = Integrator::PhotonMap;
+    prep.settings.integrator = Method::PhotonMap;
     let mut twin = prep.clone();
     twin.settings.seed = twin.settings.seed.wrapping_add(1);
     let t = Instant::now();

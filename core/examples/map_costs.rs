@@ -31,7 +31,7 @@ fn main() {
     let scene = args.get(1).map_or("scenes/cornell.toml", String::as_str);
     let paths: u64 = args.get(2).map_or(4_000_000, |s| s.parse().unwrap());
     let mut prep = Prepared::new(&photon_core::scene::Scene::load(scene.as_ref()).unwrap(), scene.as_ref()).unwrap();
-    prep.settings.integrator = photon_core::scene::Integrator::PhotonMap;
+    prep.settings.integrator = photon_core::method::Method::PhotonMap;
     let threads = rayon::current_num_threads();
     let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
     println!("{scene}, {paths} global photon paths, {threads} threads; median of 3 (seconds)");

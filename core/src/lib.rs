@@ -78,6 +78,7 @@ pub mod light;
 pub mod material;
 pub mod math;
 pub mod medium;
+pub mod method;
 pub mod metrics;
 pub mod photon;
 pub mod prepare;

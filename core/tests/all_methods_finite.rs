@@ -3,9 +3,10 @@
 
 #![allow(clippy::unwrap_used)]
 
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
 #[test]
@@ -21,7 +22,7 @@ fn no_nan_inf_or_negative_pixel() {
     assert!(scenes.iter().filter(|p| p.parent().is_some_and(|d| d.ends_with("stress"))).count() >= 12);
     assert!(scenes.len() >= 16);
     for path in &scenes {
-        for integrator in Integrator::ALL {
+        for integrator in Method::ALL {
             let mut scene = Scene::load(path).unwrap();
             scene.camera.width = 12;
             scene.camera.height = 10;
@@ -41,10 +42,10 @@ fn no_nan_inf_or_negative_pixel() {
             // A point light inside a glass sphere reaches the room only through refraction: camera paths never
             // find it (a delta light behind a delta surface), so direct lighting and the path tracer see black
             // there; the photon methods see it (the stress suite's point).
-            let camera_only = matches!(integrator, Integrator::Direct | Integrator::Path);
+            let camera_only = matches!(integrator, Method::Direct | Method::Path);
             // A gather radius of 0.0005 in a map of 5 000 photons finds none from 240 samples: the photon map
             // seen directly is rightly black at this size (the stress suite renders it at full size).
-            let no_gather = integrator == Integrator::PhotonMap && path.ends_with("small-radius.toml");
+            let no_gather = integrator == Method::PhotonMap && path.ends_with("small-radius.toml");
             let unlit = (camera_only && path.ends_with("light-in-glass.toml")) || no_gather;
             if !unlit {
                 assert!(img.pixels.iter().any(|&v| v > 0.0), "{}: {integrator}: black image", path.display());

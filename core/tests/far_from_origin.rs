@@ -13,9 +13,10 @@ use glam::{Vec3, Vec3A};
 use photon_core::math::Ray;
 use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, LightSpec, Object, Scene};
+use photon_core::scene::{LightSpec, Object, Scene};
 use std::path::Path;
 
 const FAR: Vec3 = Vec3::new(10_000.0, -10_000.0, 10_000.0);
@@ -129,7 +130,7 @@ fn cornell_box_far_away_and_scaled_is_as_bright_as_at_home() {
         img.pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / img.pixels.len() as f64
     };
     let mut home = snapped(home);
-    for integrator in [Integrator::Path, Integrator::Direct] {
+    for integrator in [Method::Path, Method::Direct] {
         home.render.integrator = integrator;
         let a = mean(&home);
         for (s, by) in [(1.0, FAR), (1.0, 10.0 * FAR), (1e-3, Vec3::ZERO), (1e3, Vec3::ZERO)] {

@@ -14,9 +14,10 @@ use photon_core::Rgb;
 use photon_core::integrator::volume::{Strategy, in_scattering};
 use photon_core::math::Ray;
 use photon_core::medium::{HenyeyGreenstein, Medium};
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
 fn prepare(text: &str, dir: &Path) -> Prepared {
@@ -59,13 +60,13 @@ fn write_box(path: &Path, min: [f32; 3], max: [f32; 3]) {
 /// `interface` material spanning z ∈ [−h, h] (and far beyond the view in x and y) whose inside absorbs with
 /// coefficient `sigma_a`, at an emitter of radiance 2; with `hole`, an `interface` sphere of that radius at the
 /// centre of the box, vacuum inside, which the view's rays cross.
-fn slab(h: f32, sigma_a: f32, hole: Option<f32>) -> Vec<(Integrator, f64)> {
+fn slab(h: f32, sigma_a: f32, hole: Option<f32>) -> Vec<(Method, f64)> {
     let dir = scratch(&format!("slab-{h}-{}", hole.unwrap_or(0.0)));
     write_box(&dir.join("slab.obj"), [-20.0, -20.0, -h], [20.0, 20.0, h]);
     let sphere = hole.map_or(String::new(), |r| {
         format!("[[objects]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = {r}\nmaterial = \"clear\"\n")
     });
-    Integrator::ALL
+    Method::ALL
         .into_iter()
         .map(|method| {
             let text = format!(
@@ -287,7 +288,7 @@ intensity = [{intensity}, {intensity}, {intensity}]
 /// A sphere of radius 2 whose inside emits radiance 1 and absorbs everything that reaches it, filled with a
 /// medium of extinction `density` and albedo `albedo`; the camera at its centre. The mean radiance over the
 /// image, by `method` with `spp` samples.
-fn volumetric_furnace(density: f32, albedo: f32, g: f32, method: Integrator, spp: u32) -> f64 {
+fn volumetric_furnace(density: f32, albedo: f32, g: f32, method: Method, spp: u32) -> f64 {
     let text = format!(
         r#"
 [camera]
@@ -323,7 +324,7 @@ fn a_conservative_medium_in_an_emitting_sphere_has_the_emitters_radiance_everywh
     // With albedo 1 and a black emitting boundary, L = Le is the equilibrium of the radiative transfer
     // equation, for any optical depth and any phase function.
     for (density, g) in [(0.5f32, 0.0f32), (2.0, 0.6), (4.0, -0.3)] {
-        let mean = volumetric_furnace(density, 1.0, g, Integrator::Path, 64);
+        let mean = volumetric_furnace(density, 1.0, g, Method::Path, 64);
         eprintln!("conservative furnace, σt {density}, g {g}: {mean:.4}");
         assert!((mean - 1.0).abs() < 0.02, "σt {density}, g {g}: {mean} vs 1");
     }
@@ -368,7 +369,7 @@ fn an_absorbing_medium_in_an_emitting_sphere_matches_an_analog_random_walk() {
     // too close to the 2 % tolerance; at 1024 spp it is 0.2008 against the walk's 0.2015.
     for (density, albedo) in [(1.0f32, 0.7f32), (3.0, 0.9)] {
         let reference = furnace_random_walk(f64::from(density), f64::from(albedo), 400_000);
-        let mean = volumetric_furnace(density, albedo, 0.0, Integrator::Path, 256);
+        let mean = volumetric_furnace(density, albedo, 0.0, Method::Path, 256);
         eprintln!("furnace σt {density}, albedo {albedo}: path {mean:.4}, random walk {reference:.4}");
         assert!((mean - reference).abs() / reference < 0.02, "σt {density}, ρ {albedo}: {mean} vs {reference}");
     }
@@ -379,7 +380,7 @@ fn scene_path(name: &str) -> std::path::PathBuf {
 }
 
 /// A shipped scene at `w × h` with `method`, as `edit` changes it further.
-fn shipped(name: &str, w: u32, h: u32, method: Integrator, edit: impl FnOnce(&mut Scene)) -> Prepared {
+fn shipped(name: &str, w: u32, h: u32, method: Method, edit: impl FnOnce(&mut Scene)) -> Prepared {
     let path = scene_path(name);
     let mut scene = Scene::load(&path).unwrap();
     scene.camera.width = w;
@@ -404,9 +405,9 @@ fn region_mean(px: &[f32], w: u32, (x0, y0, x1, y1): (u32, u32, u32, u32)) -> f6
 #[test]
 fn path_and_progressive_agree_on_the_fog_scene() {
     let (w, h) = (32, 32);
-    let path = render_image(&shipped("fog.toml", w, h, Integrator::Path, |s| s.render.spp = 1024), &|_| {});
+    let path = render_image(&shipped("fog.toml", w, h, Method::Path, |s| s.render.spp = 1024), &|_| {});
     let progressive = render_image(
-        &shipped("fog.toml", w, h, Integrator::Progressive, |s| {
+        &shipped("fog.toml", w, h, Method::Progressive, |s| {
             s.render.photons.passes = 48;
             s.render.photons.pass_photons = 50_000;
         }),
@@ -431,7 +432,7 @@ fn rel_mse(img: &[f32], reference: &[f32], (width, height): (u32, u32)) -> f64 {
 fn progressive_error_falls_with_passes_on_the_volume_caustic() {
     let (w, h) = (24, 18);
     let render = |passes: u32, seed: u64| {
-        let prep = shipped("volume-caustic.toml", w, h, Integrator::Progressive, |s| {
+        let prep = shipped("volume-caustic.toml", w, h, Method::Progressive, |s| {
             s.render.photons.passes = passes;
             s.render.photons.pass_photons = 20_000;
             s.render.seed = seed;
@@ -447,7 +448,7 @@ fn progressive_error_falls_with_passes_on_the_volume_caustic() {
     }
     // A path tracer never completes light → glass → fog paths from a point light: below the sphere the volume
     // caustic is missing from its image.
-    let prep = shipped("volume-caustic.toml", w, h, Integrator::Path, |s| s.render.spp = 64);
+    let prep = shipped("volume-caustic.toml", w, h, Method::Path, |s| s.render.spp = 64);
     let path = render_image(&prep, &|_| {}).pixels;
     let under = (10, 10, 14, 14);
     let (p, r) = (region_mean(&path, w, under), region_mean(&reference, w, under));
@@ -461,7 +462,7 @@ fn bits(v: &[f32]) -> Vec<u32> {
 
 #[test]
 fn media_renders_do_not_depend_on_threads_or_strips() {
-    for method in Integrator::ALL {
+    for method in Method::ALL {
         let prep = shipped("fog.toml", 12, 10, method, |s| {
             s.render.spp = 2;
             s.render.photons.global = 4_000;
@@ -470,11 +471,11 @@ fn media_renders_do_not_depend_on_threads_or_strips() {
             s.render.photons.final_gather_rays = 2;
         });
         let one = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
-        let whole = one.install(|| photon_core::render::render_strip(&prep, 0..10, &|_| {}));
+        let whole = one.install(|| photon_core::render::render_rows(&prep, 0..10, &|_| {}));
         let three = rayon::ThreadPoolBuilder::new().num_threads(3).build().unwrap();
         let mut stitched = Vec::new();
         for rows in [0..4, 4..5, 5..10] {
-            stitched.extend(three.install(|| photon_core::render::render_strip(&prep, rows, &|_| {})).pixels);
+            stitched.extend(three.install(|| photon_core::render::render_rows(&prep, rows, &|_| {})).pixels);
         }
         assert_eq!(bits(&whole.pixels), bits(&stitched), "{method}");
         assert!(whole.pixels.iter().any(|&v| v > 0.0), "{method}: black");
@@ -483,7 +484,7 @@ fn media_renders_do_not_depend_on_threads_or_strips() {
 
 #[test]
 fn scenes_without_media_build_no_media_and_no_volume_map() {
-    for method in [Integrator::Path, Integrator::PhotonMap, Integrator::FinalGather] {
+    for method in [Method::Path, Method::PhotonMap, Method::FinalGather] {
         let prep = shipped("cornell.toml", 8, 8, method, |s| {
             s.render.photons.global = 2_000;
             s.render.photons.caustic = 2_000;
@@ -491,7 +492,7 @@ fn scenes_without_media_build_no_media_and_no_volume_map() {
         assert!(prep.media.is_none(), "{method}");
         assert!(prep.photons.as_ref().is_none_or(|m| m.volume.is_none()), "{method}");
     }
-    let prep = shipped("fog.toml", 8, 8, Integrator::PhotonMap, |s| s.render.photons.global = 2_000);
+    let prep = shipped("fog.toml", 8, 8, Method::PhotonMap, |s| s.render.photons.global = 2_000);
     let volume = prep.photons.as_ref().and_then(|m| m.volume.as_ref()).map_or(0, |v| v.len());
     assert!(prep.media.is_some() && volume > 0, "fog: {volume} volume photons");
 }
@@ -552,8 +553,8 @@ fn an_interface_sphere_in_vacuum_changes_nothing() {
     // The Cornell box, and the same box with a sphere of the `interface` material (and vacuum inside) in the
     // middle of the room, which the camera, the light's paths and the shadow rays all cross: the same image
     // but for the rounding of the rays' restarts at the sphere.
-    let plain = shipped("cornell.toml", 24, 24, Integrator::Path, |s| s.render.spp = 512);
-    let crossed = shipped("cornell.toml", 24, 24, Integrator::Path, |s| {
+    let plain = shipped("cornell.toml", 24, 24, Method::Path, |s| s.render.spp = 512);
+    let crossed = shipped("cornell.toml", 24, 24, Method::Path, |s| {
         s.render.spp = 512;
         s.materials.insert("boundary".into(), photon_core::material::Material::Interface {});
         s.objects.push(photon_core::scene::Object::Sphere {

@@ -10,8 +10,9 @@ use photon_core::Rgb;
 use photon_core::math::Ray;
 use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
 const LIGHT: [f32; 3] = [0.3, 2.0, -0.4];
@@ -58,7 +59,7 @@ intensity = {INTENSITY:?}
 }
 
 /// The radiance each method returns towards the eye from a few points of the plane, with the analytic value.
-fn radiance(prep: &Prepared, integrator: Integrator) -> Vec<(Rgb, Rgb)> {
+fn radiance(prep: &Prepared, integrator: Method) -> Vec<(Rgb, Rgb)> {
     let (light, eye) = (Vec3A::from_array(LIGHT), Vec3A::from_array(EYE));
     let mut prep = prep.clone();
     prep.settings.integrator = integrator;
@@ -84,7 +85,7 @@ fn radiance(prep: &Prepared, integrator: Integrator) -> Vec<(Rgb, Rgb)> {
         .collect()
 }
 
-const METHODS: [Integrator; 4] = [Integrator::Direct, Integrator::Path, Integrator::PhotonMap, Integrator::FinalGather];
+const METHODS: [Method; 4] = [Method::Direct, Method::Path, Method::PhotonMap, Method::FinalGather];
 
 #[test]
 fn a_one_sided_plane_facing_the_light_reflects_as_a_two_sided_one() {
@@ -92,7 +93,7 @@ fn a_one_sided_plane_facing_the_light_reflects_as_a_two_sided_one() {
         let prep = prepared(1.0, two_sided);
         for integrator in METHODS {
             // The photon methods estimate a density: a few per cent of kernel bias and noise at 50 000 photons.
-            let tol = if matches!(integrator, Integrator::Direct | Integrator::Path) { 0.01 } else { 0.08 };
+            let tol = if matches!(integrator, Method::Direct | Method::Path) { 0.01 } else { 0.08 };
             for (l, expected) in radiance(&prep, integrator) {
                 let rel = ((l - expected) / expected).abs().max_element();
                 assert!(rel < tol, "two_sided = {two_sided}, {integrator:?}: {l} vs {expected} ({rel})");
@@ -104,7 +105,7 @@ fn a_one_sided_plane_facing_the_light_reflects_as_a_two_sided_one() {
 #[test]
 fn a_two_sided_plane_reflects_on_its_back() {
     let prep = prepared(-1.0, true);
-    for integrator in [Integrator::Direct, Integrator::Path] {
+    for integrator in [Method::Direct, Method::Path] {
         for (l, expected) in radiance(&prep, integrator) {
             let rel = ((l - expected) / expected).abs().max_element();
             assert!(rel < 0.01, "{integrator:?}: {l} vs {expected} ({rel})");

@@ -7,8 +7,9 @@ use glam::Vec3A;
 use photon_core::math::Ray;
 use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
 const SCENE: &str = r#"
@@ -45,7 +46,7 @@ fn radiance_matches_the_analytic_value() {
     let light = Vec3A::new(0.3, 2.0, -0.4);
     let intensity = Vec3A::new(10.0, 5.0, 2.5);
     let eye = Vec3A::new(0.0, 3.0, 3.0);
-    for integrator in [Integrator::Direct, Integrator::Path] {
+    for integrator in [Method::Direct, Method::Path] {
         let mut prep = prep.clone();
         prep.settings.integrator = integrator;
         for (i, target) in [[0.0, 0.0, 0.0], [1.5, 0.0, -2.0], [-2.0, 0.0, 1.0], [0.3, 0.0, -0.4]].iter().enumerate() {

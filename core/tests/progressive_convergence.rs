@@ -4,12 +4,13 @@
 
 #![allow(clippy::unwrap_used)]
 
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
-fn cornell(integrator: Integrator, spp: u32, passes: u32) -> Vec<f32> {
+fn cornell(integrator: Method, spp: u32, passes: u32) -> Vec<f32> {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
     let mut scene = Scene::load(&path).unwrap();
     scene.camera.width = 24;
@@ -38,11 +39,11 @@ fn rel_mse(x: &[f32], reference: &[f32]) -> f64 {
 
 #[test]
 fn more_passes_come_closer_to_the_path_tracer() {
-    let reference = cornell(Integrator::Path, 4096, 1);
+    let reference = cornell(Method::Path, 4096, 1);
     let n = 4;
-    let few = rel_mse(&cornell(Integrator::Progressive, 1, n), &reference);
-    let many = rel_mse(&cornell(Integrator::Progressive, 1, 4 * n), &reference);
-    let most = rel_mse(&cornell(Integrator::Progressive, 1, 16 * n), &reference);
+    let few = rel_mse(&cornell(Method::Progressive, 1, n), &reference);
+    let many = rel_mse(&cornell(Method::Progressive, 1, 4 * n), &reference);
+    let most = rel_mse(&cornell(Method::Progressive, 1, 16 * n), &reference);
     eprintln!(
         "relative MSE against the path tracer: {few:.5} ({n} passes), {many:.5} ({}), {most:.5} ({})",
         4 * n,

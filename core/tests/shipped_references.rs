@@ -7,14 +7,15 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
+use photon_core::method::Method;
 use photon_core::metrics::compare;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
 /// Renders `scene` at the reference's size with `integrator` at budget `b` (spp or passes).
-fn render(name: &str, integrator: Integrator, b: u32) -> Image {
+fn render(name: &str, integrator: Method, b: u32) -> Image {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes");
     let path = dir.join(format!("{name}.toml"));
     let mut scene = Scene::load(&path).unwrap();
@@ -29,7 +30,7 @@ fn render(name: &str, integrator: Integrator, b: u32) -> Image {
     Image { width: 32, height: 32, pixels: render_image(&prep, &|_| {}).pixels }
 }
 
-fn check(name: &str, integrator: Integrator, budgets: [u32; 2]) {
+fn check(name: &str, integrator: Method, budgets: [u32; 2]) {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/references");
     let reference = Image::read(&dir.join(format!("{name}-32.exr"))).unwrap();
     let [lo, hi] = budgets.map(|b| compare(&render(name, integrator, b), &reference, None).unwrap());
@@ -47,14 +48,14 @@ fn check(name: &str, integrator: Integrator, budgets: [u32; 2]) {
 
 #[test]
 fn path_traced_references() {
-    check("cornell", Integrator::Path, [64, 256]);
-    check("mesh", Integrator::Path, [64, 256]);
+    check("cornell", Method::Path, [64, 256]);
+    check("mesh", Method::Path, [64, 256]);
 }
 
 #[test]
 fn progressive_references_of_point_light_caustics() {
-    check("cornell-point", Integrator::Progressive, [8, 32]);
-    check("caustic-point", Integrator::Progressive, [8, 32]);
+    check("cornell-point", Method::Progressive, [8, 32]);
+    check("caustic-point", Method::Progressive, [8, 32]);
 }
 
 /// Textures, a bump map and a normal map: the path tracer converges to the reference, and progressive photon
@@ -62,6 +63,6 @@ fn progressive_references_of_point_light_caustics() {
 /// to the path tracer's image.
 #[test]
 fn textured_reference() {
-    check("textured", Integrator::Path, [64, 256]);
-    check("textured", Integrator::Progressive, [8, 32]);
+    check("textured", Method::Path, [64, 256]);
+    check("textured", Method::Progressive, [8, 32]);
 }

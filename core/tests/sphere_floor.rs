@@ -4,14 +4,15 @@
 
 #![allow(clippy::unwrap_used)]
 
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, Scene};
+use photon_core::scene::Scene;
 use std::path::Path;
 
 /// The image, as (width, height, luminance-free red channel), of the scene with the floor `floor` (a TOML
 /// object) seen from `eye` towards `look_at`.
-fn render(floor: &str, integrator: Integrator, eye: [f32; 3], look_at: [f32; 3], fov: f32) -> (usize, Vec<f32>) {
+fn render(floor: &str, integrator: Method, eye: [f32; 3], look_at: [f32; 3], fov: f32) -> (usize, Vec<f32>) {
     let width = 32usize;
     let text = format!(
         r#"
@@ -73,7 +74,7 @@ fn mean(v: &[f32]) -> f64 {
 #[test]
 fn oblique_view_of_the_floor_matches_the_plane() {
     // The bottom eight rows: floor only, in front of the ball, partly in its shadow.
-    for integrator in [Integrator::Direct, Integrator::Path] {
+    for integrator in [Method::Direct, Method::Path] {
         let view = |floor: &str| render(floor, integrator, [0.0, 1.0, 4.0], [0.0, 0.3, 0.0], 45.0);
         let (w, p) = view(&plane());
         let reference = mean(&p[p.len() - 8 * w..]);
@@ -90,7 +91,7 @@ fn oblique_view_of_the_floor_matches_the_plane() {
 fn floor_under_the_light_matches_the_plane_for_every_radius() {
     // Looking straight down at a patch 0.1 wide under the light, at the top of the floor sphere (centred under
     // it), where even R = 10 is flat to 0.1 %.
-    for integrator in [Integrator::Direct, Integrator::Path] {
+    for integrator in [Method::Direct, Method::Path] {
         let view = |floor: &str| render(floor, integrator, [1.0, 1.0, 1.0], [1.0, 0.0, 1.001], 5.7);
         let reference = mean(&view(&plane()).1);
         for r in [10.0, 1e2, 1e3, 1e4, 1e5, 1e6] {

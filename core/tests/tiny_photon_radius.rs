@@ -4,16 +4,16 @@
 
 #![allow(clippy::unwrap_used)]
 
+use photon_core::method::Method;
 use photon_core::prepare::{MIN_RELATIVE_PHOTON_RADIUS, Prepared};
 use photon_core::render::render_image;
-use photon_core::scene::{Integrator, Scene, SceneError};
+use photon_core::scene::{Scene, SceneError};
 use std::path::{Path, PathBuf};
 
 /// The methods that gather photons, and `vcm`, which merges light vertices within `merge_radius`.
-const PHOTON_METHODS: [Integrator; 4] =
-    [Integrator::PhotonMap, Integrator::FinalGather, Integrator::Progressive, Integrator::Vcm];
+const PHOTON_METHODS: [Method; 4] = [Method::PhotonMap, Method::FinalGather, Method::Progressive, Method::Vcm];
 
-fn cornell(integrator: Integrator, radius: f32) -> (Scene, PathBuf) {
+fn cornell(integrator: Method, radius: f32) -> (Scene, PathBuf) {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
     let mut scene = Scene::load(&path).unwrap();
     scene.camera.width = 8;
@@ -44,8 +44,7 @@ fn radius_below_the_floor_is_an_error_naming_the_field() {
         for radius in [1e-25, 1e-30, 0.0] {
             let (scene, path) = cornell(integrator, radius);
             let e = Prepared::new(&scene, &path).unwrap_err();
-            let name =
-                if integrator == Integrator::Vcm { "render.photons.merge_radius" } else { "render.photons.radius" };
+            let name = if integrator == Method::Vcm { "render.photons.merge_radius" } else { "render.photons.radius" };
             assert!(matches!(&e, SceneError::Invalid { field, .. } if field == name), "{integrator} {radius:e}: {e}");
             assert!(e.to_string().contains(name), "{e}");
         }
@@ -54,7 +53,7 @@ fn radius_below_the_floor_is_an_error_naming_the_field() {
 
 #[test]
 fn radius_is_not_checked_for_methods_that_do_not_gather() {
-    for integrator in [Integrator::Path, Integrator::Direct, Integrator::Bdpt, Integrator::Lt] {
+    for integrator in [Method::Path, Method::Direct, Method::Bdpt, Method::Lt] {
         let (scene, path) = cornell(integrator, 1e-30);
         assert!(Prepared::new(&scene, &path).is_ok(), "{integrator}");
     }

@@ -15,11 +15,12 @@ use photon_core::material::bsdf::{Bsdf, TransportMode};
 use photon_core::math::Ray;
 use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
+use photon_core::method::Method;
 use photon_core::photon::Kernel;
 use photon_core::prepare::Prepared;
 use photon_core::render::render_image;
-use photon_core::render::vcm::{Iteration, MisState, Techniques, continuation, weights};
-use photon_core::scene::{Integrator, Scene};
+use photon_core::render::vcm::{Iteration, MisState, continuation, weights};
+use photon_core::scene::Scene;
 use std::f32::consts::FRAC_1_PI;
 use std::path::Path;
 
@@ -34,7 +35,7 @@ fn parse(text: &str) -> Prepared {
     Prepared::new(&scene, Path::new("vcm-test.toml")).unwrap()
 }
 
-fn render(prep: &Prepared, integrator: Integrator, size: u32, budget: u32) -> Image {
+fn render(prep: &Prepared, integrator: Method, size: u32, budget: u32) -> Image {
     let mut prep = prep.clone();
     prep.settings.integrator = integrator;
     prep.camera.width = size;
@@ -292,7 +293,7 @@ fn mis_weights_of_every_technique_sum_to_one_on_stored_paths() {
         let paths = stored_paths(&prep, 300);
         let mut lengths = [0usize; 8];
         let mut with_delta = 0;
-        for techniques in [Techniques::of(Integrator::Vcm).unwrap(), Techniques::of(Integrator::Bdpt).unwrap()] {
+        for techniques in [Method::Vcm.techniques().unwrap(), Method::Bdpt.techniques().unwrap()] {
             // A radius small and large against the room (2 units wide), and the number of light paths of a
             // 256×256 image.
             for r in [0.003f32, 0.05] {
@@ -381,7 +382,7 @@ fn plane_truth(prep: &Prepared) -> Image {
 fn light_tracing_alone_and_with_connections_gives_a_point_light_over_a_lambert_plane() {
     let prep = parse(PLANE);
     let truth = plane_truth(&prep);
-    for (integrator, passes) in [(Integrator::Lt, 2048), (Integrator::Bdpt, 256), (Integrator::Vcm, 256)] {
+    for (integrator, passes) in [(Method::Lt, 2048), (Method::Bdpt, 256), (Method::Vcm, 256)] {
         let image = render(&prep, integrator, 20, passes);
         let (m, t) = (mean(&image), mean(&truth));
         let err = rel_mse(&image, &truth);
@@ -446,7 +447,7 @@ material = "white"
 #[test]
 fn white_objects_in_an_open_furnace_are_invisible() {
     let prep = parse(OPEN_FURNACE);
-    for (integrator, passes) in [(Integrator::Vcm, 64), (Integrator::Bdpt, 64), (Integrator::Lt, 4096)] {
+    for (integrator, passes) in [(Method::Vcm, 64), (Method::Bdpt, 64), (Method::Lt, 4096)] {
         let image = render(&prep, integrator, 16, passes);
         let m = mean(&image);
         // Every quadrant, not just the mean: a technique that double-counts or misses shows on the objects.
@@ -493,7 +494,7 @@ material = "grey"
 emission = { radiance = [1.0, 1.0, 1.0], two_sided = true }
 "#;
     let prep = parse(text);
-    for integrator in [Integrator::Vcm, Integrator::Bdpt, Integrator::Lt] {
+    for integrator in [Method::Vcm, Method::Bdpt, Method::Lt] {
         let m = mean(&render(&prep, integrator, 12, 128));
         eprintln!("closed furnace, albedo 0.5, {integrator}: {m:.4} (expected 2)");
         assert!((m - 2.0).abs() < 0.02 * 2.0, "{integrator}: {m}");
@@ -506,12 +507,12 @@ emission = { radiance = [1.0, 1.0, 1.0], two_sided = true }
 #[test]
 fn means_agree_with_the_path_tracer_on_both_rooms() {
     for (room, methods) in [
-        ("scenes/rooms/cornell-boxes.toml", &[Integrator::Vcm, Integrator::Bdpt, Integrator::Lt][..]),
+        ("scenes/rooms/cornell-boxes.toml", &[Method::Vcm, Method::Bdpt, Method::Lt][..]),
         // Light tracing cannot see the spheres' reflections from the camera: it is not expected to agree there.
-        ("scenes/rooms/cornell-spheres.toml", &[Integrator::Vcm, Integrator::Bdpt][..]),
+        ("scenes/rooms/cornell-spheres.toml", &[Method::Vcm, Method::Bdpt][..]),
     ] {
         let prep = load(room);
-        let reference = mean(&render(&prep, Integrator::Path, 32, 4096));
+        let reference = mean(&render(&prep, Method::Path, 32, 4096));
         for &integrator in methods {
             let m = mean(&render(&prep, integrator, 32, 1024));
             let rel = m / reference - 1.0;
@@ -526,8 +527,8 @@ fn error_falls_at_every_fourfold_step_of_iterations() {
     // The diffuse room: the path tracer's reference converges there (the caustic room's would carry its own
     // fireflies into every measurement).
     let prep = load("scenes/rooms/cornell-boxes.toml");
-    let reference = render(&prep, Integrator::Path, 24, 16384);
-    for integrator in [Integrator::Vcm, Integrator::Bdpt, Integrator::Lt] {
+    let reference = render(&prep, Method::Path, 24, 16384);
+    for integrator in [Method::Vcm, Method::Bdpt, Method::Lt] {
         let errors: Vec<f64> =
             [8, 32, 128, 512].iter().map(|&n| rel_mse(&render(&prep, integrator, 24, n), &reference)).collect();
         eprintln!("{integrator}: relMSE at 8, 32, 128, 512 iterations: {errors:?}");

@@ -35,7 +35,7 @@ pub mod pb {
 }
 
 /// Version of the protocol; raise it with every incompatible change of `render.proto` or of its meaning.
-pub const PROTOCOL_VERSION: u32 = 6;
+pub const PROTOCOL_VERSION: u32 = 7;
 
 /// A hash of the code that decides what a worker renders and how it speaks (core, proto, worker and the locked
 /// dependencies): coordinator and workers must have the same one.
@@ -83,26 +83,12 @@ pub fn checksum(bytes: &[u8]) -> [u8; 32] {
     *blake3::hash(bytes).as_bytes()
 }
 
-/// Linear RGB pixels as little-endian bytes, 4 per float.
-pub fn pixels_to_bytes(pixels: &[f32]) -> Vec<u8> {
-    pixels.iter().flat_map(|v| v.to_le_bytes()).collect()
-}
-
-/// Little-endian bytes back to floats; `None` when the length is not a multiple of 4.
-pub fn bytes_to_pixels(bytes: &[u8]) -> Option<Vec<f32>> {
-    let chunks = bytes.chunks_exact(4);
-    if !chunks.remainder().is_empty() {
-        return None;
-    }
-    Some(chunks.map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect())
-}
-
-/// Fixed-point pass sums as little-endian bytes, 8 per value.
+/// Fixed-point block sums as little-endian bytes, 8 per value.
 pub fn sums_to_bytes(sums: &[i64]) -> Vec<u8> {
     sums.iter().flat_map(|v| v.to_le_bytes()).collect()
 }
 
-/// Little-endian bytes back to pass sums; `None` when the length is not a multiple of 8.
+/// Little-endian bytes back to block sums; `None` when the length is not a multiple of 8.
 pub fn bytes_to_sums(bytes: &[u8]) -> Option<Vec<i64>> {
     let chunks = bytes.chunks_exact(8);
     if !chunks.remainder().is_empty() {
@@ -292,10 +278,7 @@ mod tests {
     }
 
     #[test]
-    fn pixels_round_trip() {
-        let v = [0.0f32, -1.5, f32::MAX, f32::MIN_POSITIVE, 3.25];
-        assert_eq!(bytes_to_pixels(&pixels_to_bytes(&v)).unwrap(), v);
-        assert!(bytes_to_pixels(&[0; 5]).is_none());
+    fn sums_round_trip() {
         let s = [0i64, -1, i64::MAX, 1 << 40];
         assert_eq!(bytes_to_sums(&sums_to_bytes(&s)).unwrap(), s);
         assert!(bytes_to_sums(&[0; 12]).is_none());

@@ -6,8 +6,9 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::camera::Camera;
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
-use photon_core::scene::{Integrator, RenderSettings, Scene};
+use photon_core::scene::{RenderSettings, Scene};
 use photon_proto::pb::{self, render_client::RenderClient};
 use photon_tests::WorkerProcess;
 use std::time::{Duration, Instant};
@@ -26,7 +27,7 @@ fn job() -> Prepared {
     scene.camera.width = 8;
     scene.camera.height = 4;
     scene.render.spp = 4;
-    scene.render.integrator = Integrator::Path;
+    scene.render.integrator = Method::Path;
     Prepared::new(&scene, &path).unwrap()
 }
 
@@ -44,6 +45,9 @@ fn request(scene_blob: &str, frame: Vec<u8>, rows: (u32, u32)) -> pb::StripReque
         row_end: rows.1,
         strip: 0,
         attempt: 1,
+        // One unit (a sample, or a pass): a block within every job.
+        unit_start: 0,
+        unit_end: 1,
         ..Default::default()
     }
 }
@@ -54,7 +58,7 @@ async fn render(c: &mut RenderClient<Channel>, req: pb::StripRequest) -> Result<
     let mut bytes = Vec::new();
     while let Some(ev) = stream.message().await? {
         match ev.event {
-            Some(pb::strip_event::Event::Rows(r)) => bytes.extend_from_slice(&r.data),
+            Some(pb::strip_event::Event::Sums(r)) => bytes.extend_from_slice(&r.data),
             Some(pb::strip_event::Event::Done(d)) => assert_eq!(d.checksum, photon_proto::checksum(&bytes).to_vec()),
             _ => {}
         }
@@ -179,7 +183,7 @@ async fn hostile_requests_are_refused_and_the_worker_then_renders_a_correct_stri
     };
     let e = c.render_strip(request(&scene_id, frame(prep.camera, &k), (0, 1))).await.unwrap_err();
     assert!(e.message().contains("render.photons.k"), "{}", e.message());
-    let photon_map = RenderSettings { integrator: Integrator::PhotonMap, ..settings.clone() };
+    let photon_map = RenderSettings { integrator: Method::PhotonMap, ..settings.clone() };
     let e = c.render_strip(request(&scene_id, frame(prep.camera, &photon_map), (0, 1))).await.unwrap_err();
     assert_eq!(e.code(), Code::InvalidArgument, "{e:?}");
     assert!(e.message().contains("photons_blob") && e.message().contains("needs photon maps"), "{}", e.message());
@@ -198,8 +202,9 @@ async fn hostile_requests_are_refused_and_the_worker_then_renders_a_correct_stri
 
     // And the next is the strip this process renders.
     let got = render(&mut c, request(&scene_id, prep.encode_frame().unwrap(), (0, 4))).await.unwrap();
-    let expected = photon_core::render::render_strip(&prep, 0..4, &|_| {});
-    assert_eq!(got, photon_proto::pixels_to_bytes(&expected.pixels));
+    let block = photon_core::render::Block { rows: 0..4, units: 0..1 };
+    let expected = photon_core::render::render_block(&prep, &block, &|_| true).unwrap();
+    assert_eq!(got, photon_proto::sums_to_bytes(&expected.sums));
 
     // Nothing was allocated from the doctored sizes: the worker's peak resident memory stays small (a width of
     // 0xFFFFFFFF once asked for 51 GB).

@@ -224,7 +224,7 @@ fn a_worker_refuses_maps_sent_both_ways_or_for_a_method_without_maps() {
     let prep = photon_core::prepare::Prepared::new(&scene, &scene_path).unwrap();
     let blob = prep.encode_scene().unwrap();
     let id = photon_proto::blob_id(&blob);
-    let frame_of = |method: photon_core::scene::Integrator| {
+    let frame_of = |method: photon_core::method::Method| {
         let mut settings = prep.settings.clone();
         settings.integrator = method;
         photon_core::prepare::Prepared::encode_frame_of(&prep.camera, &settings).unwrap()
@@ -240,13 +240,15 @@ fn a_worker_refuses_maps_sent_both_ways_or_for_a_method_without_maps() {
             frame,
             row_start: 0,
             row_end: 1,
+            unit_start: 0,
+            unit_end: 1,
             trace_photons,
             ..Default::default()
         };
-        let photon_map = frame_of(photon_core::scene::Integrator::PhotonMap);
+        let photon_map = frame_of(photon_core::method::Method::PhotonMap);
         let cases = [
             (request(photon_map.clone(), &id, true), "trace_photons"),
-            (request(frame_of(photon_core::scene::Integrator::Path), "", true), "needs no photon maps"),
+            (request(frame_of(photon_core::method::Method::Path), "", true), "needs no photon maps"),
             (request(photon_map.clone(), "", false), "needs photon maps"),
         ];
         for (r, needle) in cases {

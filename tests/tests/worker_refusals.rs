@@ -3,7 +3,7 @@
 
 #![allow(clippy::unwrap_used)]
 
-use photon_core::scene::Integrator;
+use photon_core::method::Method;
 use photon_proto::pb::{self, render_client::RenderClient};
 use photon_tests::WorkerProcess;
 use tonic::Code;
@@ -122,7 +122,7 @@ async fn rows_outside_the_image_are_refused() {
     let mut scene = photon_core::scene::Scene::load(&path).unwrap();
     scene.camera.width = 8;
     scene.camera.height = 4;
-    scene.render.integrator = Integrator::Path; // a strip of rows, not a block of passes
+    scene.render.integrator = Method::Path; // a strip of rows, not a block of passes
     let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap().with_photon_maps(&path).unwrap();
     let blob = prep.encode_scene().unwrap();
     let id = photon_proto::blob_id(&blob);
@@ -137,20 +137,22 @@ async fn rows_outside_the_image_are_refused() {
         row_end: rows.1,
         strip: 0,
         attempt: 1,
+        unit_start: 0,
+        unit_end: prep.settings.units(),
         ..Default::default()
     };
     let e = c.render_strip(req((2, 9))).await.unwrap_err();
     assert_eq!(e.code(), Code::OutOfRange);
     assert!(e.message().contains("outside the image's 4 rows"), "{}", e.message());
-    // The valid rows render: 8 pixels × 3 floats × 4 bytes per row.
+    // The valid rows render: 8 pixels × 3 sums × 8 bytes per row.
     let mut stream = c.render_strip(req((0, 4))).await.unwrap().into_inner();
     let mut bytes = 0;
     while let Some(ev) = stream.message().await.unwrap() {
-        if let Some(pb::strip_event::Event::Rows(r)) = ev.event {
+        if let Some(pb::strip_event::Event::Sums(r)) = ev.event {
             bytes += r.data.len();
         }
     }
-    assert_eq!(bytes, 4 * 8 * 12);
+    assert_eq!(bytes, 4 * 8 * 24);
 }
 
 #[tokio::test]
@@ -163,7 +165,7 @@ async fn pass_blocks_are_checked_against_the_job() {
     scene.render.photons.pass_photons = 500;
     let w = WorkerProcess::start(&[]);
     let mut c = client(&w).await;
-    for integrator in [Integrator::Progressive, Integrator::Vcm, Integrator::Bdpt, Integrator::Lt, Integrator::Path] {
+    for integrator in [Method::Progressive, Method::Vcm, Method::Bdpt, Method::Lt, Method::Path] {
         scene.render.integrator = integrator;
         let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap();
         let blob = prep.encode_scene().unwrap();
@@ -174,8 +176,8 @@ async fn pass_blocks_are_checked_against_the_job() {
             frame: prep.encode_frame().unwrap(),
             row_start: 0,
             row_end: 4,
-            pass_start: passes.0,
-            pass_end: passes.1,
+            unit_start: passes.0,
+            unit_end: passes.1,
             ..Default::default()
         };
         if integrator.renders_passes() {
@@ -196,7 +198,7 @@ async fn pass_blocks_are_checked_against_the_job() {
         } else {
             // The other methods take blocks of sample indices within the frame's samples per pixel.
             let spp = prep.settings.spp;
-            for bad in [(3, 2), (spp, spp + 1)] {
+            for bad in [(0, 0), (3, 2), (spp, spp + 1)] {
                 let e = c.render_strip(req(bad)).await.unwrap_err();
                 assert_eq!(e.code(), Code::OutOfRange, "{bad:?}");
                 assert!(e.message().contains(&format!("within the job's {spp} samples per pixel")), "{}", e.message());

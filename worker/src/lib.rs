@@ -49,11 +49,13 @@ pub mod cache;
 pub mod disk_store;
 
 use cache::BlobCache;
+use photon_core::method::Unit;
 use photon_core::prepare::Prepared;
 use photon_core::prepare::blobs::Frame;
 use photon_core::prepare::budget::MemoryEstimate;
-use photon_core::render::progressive::{MAX_BLOCK_PASSES, render_passes};
-use photon_core::render::render_strip_with;
+use photon_core::render::sums::MAX_BLOCK_UNITS;
+use photon_core::render::{Block, render_block};
+use photon_core::scene::RenderSettings;
 use photon_proto::pb::render_server::{Render, RenderServer};
 use photon_proto::pb::{self, strip_event::Event};
 use photon_proto::transport::SERVED_AT_ONCE;
@@ -434,19 +436,13 @@ pub fn check_strip_request(r: &pb::StripRequest, limits: &Limits) -> Result<Fram
             "photons_blob: the frame's method `{method}` {needs} photon maps, and {sent}"
         )));
     }
-    check_passes(r, &frame.settings)?;
+    check_units(r, &frame.settings)?;
     let mut estimate = MemoryEstimate::strip(width, r.row_end - r.row_start, &frame.settings, limits.threads);
     // A pass of vcm, bdpt or lt traces the light subpaths of the whole image, whatever rows it renders.
     estimate.light_paths = MemoryEstimate::light_paths(width, height, &frame.settings);
     if r.trace_photons {
         // Maps traced here are held here (received ones were bounded by the blob size limit on upload).
         estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
-    }
-    if r.pass_end > r.pass_start && estimate.progressive == 0 {
-        // A block of samples answers with fixed-point sums, as a block of photon passes does.
-        estimate.progressive = u64::from(width)
-            .saturating_mul(u64::from(r.row_end - r.row_start))
-            .saturating_mul(photon_core::prepare::budget::PROGRESSIVE_BYTES_PER_PIXEL);
     }
     estimate
         .check(limits.strip_memory_bytes, width, r.row_end - r.row_start, &frame.settings)
@@ -923,42 +919,28 @@ impl StripContext {
             }
         }
         let t0 = Instant::now();
-        let progress = |rows: u32| {
+        let progress = |units: u32| {
             // A full channel only delays a progress report; a closed one means the coordinator left: stop.
-            let _ = tx.try_send(Ok(pb::StripEvent { event: Some(Event::RowsDone(rows)) }));
+            let _ = tx.try_send(Ok(pb::StripEvent { event: Some(Event::UnitsDone(units)) }));
             !tx.is_closed()
         };
         let prep = &job.prep;
-        let rows = r.row_start..r.row_end;
-        let cancelled = || Status::cancelled("the coordinator cancelled the strip");
-        let (mut bytes, value_bytes, mut summary) = if r.pass_end > r.pass_start {
-            let block = self.pool.install(|| render_passes(prep, rows, r.pass_start..r.pass_end, &progress));
-            let block = block.ok_or_else(cancelled)?;
-            let mut sums = block.sums;
-            if self.nan_pixels
-                && let Some(v) = sums.first_mut()
-            {
-                tracing::warn!(strip = r.strip, "fault injection: an impossible pass sum before the checksum");
-                *v = -1;
-            }
-            let summary = pb::StripSummary {
-                rays: block.rays,
-                photon_paths: block.photon_paths,
-                photon_seconds: block.photon_seconds,
-                ..Default::default()
-            };
-            (photon_proto::sums_to_bytes(&sums), 8, summary)
-        } else {
-            let strip = self.pool.install(|| render_strip_with(prep, rows, &progress)).ok_or_else(cancelled)?;
-            let mut pixels = strip.pixels;
-            if self.nan_pixels
-                && let Some(p) = pixels.first_mut()
-            {
-                tracing::warn!(strip = r.strip, "fault injection: a NaN pixel before the checksum");
-                *p = f32::NAN;
-            }
-            let summary = pb::StripSummary { rays: strip.rays, ..Default::default() };
-            (photon_proto::pixels_to_bytes(&pixels), 4, summary)
+        let block = Block { rows: r.row_start..r.row_end, units: r.unit_start..r.unit_end };
+        let block = self.pool.install(|| render_block(prep, &block, &progress));
+        let block = block.ok_or_else(|| Status::cancelled("the coordinator cancelled the strip"))?;
+        let mut sums = block.sums;
+        if self.nan_pixels
+            && let Some(v) = sums.first_mut()
+        {
+            tracing::warn!(strip = r.strip, "fault injection: an impossible sum before the checksum");
+            *v = -1;
+        }
+        let mut bytes = photon_proto::sums_to_bytes(&sums);
+        let mut summary = pb::StripSummary {
+            rays: block.rays,
+            photon_paths: block.photon_paths,
+            photon_seconds: block.photon_seconds,
+            ..Default::default()
         };
         summary.render_seconds = t0.elapsed().as_secs_f64();
         let load = std::mem::take(&mut *job.unreported.lock().unwrap_or_else(std::sync::PoisonError::into_inner));
@@ -976,7 +958,7 @@ impl StripContext {
             bytes[0] ^= 0x40;
         }
         summary.checksum = checksum;
-        let row_bytes = 3 * value_bytes * width as usize;
+        let row_bytes = 3 * 8 * width as usize;
         let rows_per_chunk = (MAX_CHUNK / row_bytes.max(1)).max(1);
         let mut events: Vec<Event_> = bytes
             .chunks(rows_per_chunk * row_bytes)
@@ -984,7 +966,7 @@ impl StripContext {
             .map(|(i, c)| {
                 let first_row = r.row_start + (i * rows_per_chunk) as u32;
                 let rows = pb::PixelRows { first_row, data: c.to_vec() };
-                Ok(pb::StripEvent { event: Some(if value_bytes == 8 { Event::Sums(rows) } else { Event::Rows(rows) }) })
+                Ok(pb::StripEvent { event: Some(Event::Sums(rows)) })
             })
             .collect();
         events.push(Ok(pb::StripEvent { event: Some(Event::Done(summary)) }));
@@ -992,26 +974,22 @@ impl StripContext {
     }
 }
 
-/// Checks a request's passes against its frame: a block of passes (within `render.photons.passes`) for the
-/// methods that render in passes (progressive, vcm, bdpt, lt), of sample indices (within `render.spp`) for the
-/// other methods, or none (`0..0`: a strip of rows at `render.spp` samples per pixel; never for the methods
-/// that render in passes).
-fn check_passes(r: &pb::StripRequest, settings: &photon_core::scene::RenderSettings) -> Result<(), Status> {
-    let in_passes = settings.integrator.renders_passes();
-    let (start, end) = (r.pass_start, r.pass_end);
-    if !in_passes && (start, end) == (0, 0) {
-        return Ok(());
-    }
-    let (total, what) =
-        if in_passes { (settings.photons.passes, "passes") } else { (settings.spp, "samples per pixel") };
+/// Checks a request's units against its frame: a non-empty block of at most [`MAX_BLOCK_UNITS`] within the
+/// job's units ([`RenderSettings::units`]: samples per pixel, or passes).
+fn check_units(r: &pb::StripRequest, settings: &RenderSettings) -> Result<(), Status> {
+    let (start, end, total) = (r.unit_start, r.unit_end, settings.units());
+    let what = match settings.integrator.unit() {
+        Unit::Samples => "samples per pixel",
+        Unit::Passes => "passes",
+    };
     if start >= end || end > total {
         return Err(Status::out_of_range(format!(
-            "pass_start/pass_end {start}..{end}: expected a non-empty block within the job's {total} {what}"
+            "unit_start/unit_end {start}..{end}: expected a non-empty block within the job's {total} {what}"
         )));
     }
-    if end - start > MAX_BLOCK_PASSES {
+    if end - start > MAX_BLOCK_UNITS {
         return Err(Status::invalid_argument(format!(
-            "pass_start/pass_end {start}..{end}: expected at most {MAX_BLOCK_PASSES} passes in one block"
+            "unit_start/unit_end {start}..{end}: expected at most {MAX_BLOCK_UNITS} units in one block"
         )));
     }
     Ok(())

@@ -10,9 +10,11 @@
 
 use photon_core::camera::Camera;
 use photon_core::math::rng::mix64;
+use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::prepare::budget::MemoryEstimate;
-use photon_core::scene::{Integrator, MAX_IMAGE_SIDE, RenderSettings, Scene};
+use photon_core::render::sums::MAX_BLOCK_UNITS;
+use photon_core::scene::{MAX_IMAGE_SIDE, RenderSettings, Scene};
 use photon_proto::pb;
 use photon_worker::{Limits, check_strip_request};
 use tonic::Code;
@@ -42,7 +44,7 @@ fn base() -> (Camera, RenderSettings) {
 }
 
 fn random_settings(rng: &mut Rng, mut s: RenderSettings) -> RenderSettings {
-    s.integrator = rng.pick(&Integrator::ALL);
+    s.integrator = rng.pick(&Method::ALL);
     s.spp = rng.pick(&HOSTILE_U32);
     s.photons.k = rng.pick(&HOSTILE_U32);
     s.photons.passes = rng.pick(&HOSTILE_U32);
@@ -107,8 +109,8 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
             row_end: row(&mut rng),
             strip: rng.next() as u32,
             attempt: rng.next() as u32,
-            pass_start: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
-            pass_end: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
+            unit_start: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
+            unit_end: if rng.below(2) == 0 { 0 } else { row(&mut rng) },
             trace_photons: rng.below(2) == 0,
             texture_blobs: match rng.below(4) {
                 0 => vec![id.clone()],
@@ -119,9 +121,9 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
         };
         if mode == 3 {
             r.texture_blobs.clear();
-            // A well-formed request of the base frame (48 rows, path tracing: no photons blob, no passes).
+            // A well-formed request of the base frame (48 rows, path tracing: no photons blob, one sample).
             (r.scene_blob, r.photons_blob, r.trace_photons) = (id.clone(), String::new(), false);
-            (r.pass_start, r.pass_end) = (0, 0);
+            (r.unit_start, r.unit_end) = (0, 1);
             r.row_start = rng.below(48) as u32;
             r.row_end = r.row_start + 1 + rng.below(u64::from(48 - r.row_start)) as u32;
         }
@@ -137,24 +139,15 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
                 if r.trace_photons {
                     estimate.photon_maps = MemoryEstimate::photon_maps(&frame.settings);
                 }
-                if r.pass_end > r.pass_start && estimate.progressive == 0 {
-                    // A block of samples answers with fixed-point sums, as a block of photon passes does.
-                    estimate.progressive =
-                        u64::from(w) * u64::from(rows) * photon_core::prepare::budget::PROGRESSIVE_BYTES_PER_PIXEL;
-                }
                 let bytes = estimate.total();
                 assert!(bytes <= limits.strip_memory_bytes, "case {case}: {bytes} bytes accepted");
                 // Photon maps come one way or the other when, and only when, the method reads them.
                 let maps = usize::from(!r.photons_blob.is_empty()) + usize::from(r.trace_photons);
                 assert_eq!(usize::from(frame.settings.integrator.needs_photon_maps()), maps, "case {case}");
-                let passes = r.pass_start..r.pass_end;
-                if frame.settings.integrator.renders_passes() {
-                    assert!(!passes.is_empty() && passes.end <= frame.settings.photons.passes, "case {case}");
-                } else {
-                    // A strip at the frame's samples per pixel, or a block of its sample indices.
-                    let block = !passes.is_empty() && passes.end <= frame.settings.spp;
-                    assert!(passes == (0..0) || block, "case {case}: passes {passes:?}");
-                }
+                // Every request is a non-empty block of the frame's units (passes, or samples per pixel).
+                let units = r.unit_start..r.unit_end;
+                assert!(!units.is_empty() && units.end <= frame.settings.units(), "case {case}: units {units:?}");
+                assert!(units.len() <= MAX_BLOCK_UNITS as usize, "case {case}: units {units:?}");
             }
             Err(e) => {
                 refused += 1;

@@ -1,7 +1,7 @@
 //! The scheduler's vocabulary: worker and strip ids, the policy's knobs, and what the state machine answers
 //! (assignments, completions, failures and their outcomes, per-worker numbers).
 
-use photon_core::render::progressive::MAX_BLOCK_PASSES;
+use photon_core::render::sums::MAX_BLOCK_UNITS;
 use std::fmt;
 use std::ops::Range;
 use std::time::Duration;
@@ -70,13 +70,13 @@ pub fn rows_per_strip_for(height: u32, workers: u32) -> u32 {
 }
 
 /// Passes per block for progressive photon mapping over `workers` workers: about 16 blocks per worker, as for
-/// strips, never more than [`MAX_BLOCK_PASSES`] nor fewer than 1. Each block renders the whole image and traces
+/// strips, never more than [`MAX_BLOCK_UNITS`] nor fewer than 1. Each block renders the whole image and traces
 /// its passes' photons once; the cut never changes a pixel (the sums are exact). Fewer blocks send fewer full
 /// images back, more blocks shorten the tail: on the modelled 368-core lab (docs/RESULTS.md, "The modelled lab")
 /// a 10-minute 1920×1080 job reaches 72 % efficiency with 4 blocks per worker (the last blocks of the slow
 /// machines hold the end up), 88 % with 16, and 81 % with 32 (50 MB per block saturate the coordinator's link).
 pub fn passes_per_block_for(passes: u32, workers: u32) -> u32 {
-    passes.div_ceil(workers.max(1).saturating_mul(16)).clamp(1, MAX_BLOCK_PASSES)
+    passes.div_ceil(workers.max(1).saturating_mul(16)).clamp(1, MAX_BLOCK_UNITS)
 }
 
 /// One strip given to one worker.

@@ -1,24 +1,21 @@
-//! Integrators: how the radiance arriving along one camera ray is estimated. One file per method:
+//! Integrators: how the radiance arriving along one camera ray is estimated, for the methods whose unit is a
+//! camera sample ([`crate::method::CameraEstimator`]), and the pieces every method's camera paths share.
 //!
-//! | method (`render.integrator`) | file | what it computes |
+//! | estimator | file | what it computes |
 //! |---|---|---|
-//! | `path`, `direct` | [`path`] | unbiased path tracing with next-event estimation and MIS; direct light only |
-//! | `photon-map` | [`photon_map`] | the global photon map seen at the first non-delta surface |
-//! | `final-gather` | [`final_gather`] | shadow rays + caustic map + final gathering of the global map |
-//! | `progressive` | `render::progressive` | per-pixel statistics over passes: a strip-level method, not per ray |
-//! | `vcm`, `bdpt`, `lt` | `render::vcm` | light and camera subpaths joined by connections and merges, per pass |
+//! | `Path`, `Direct` | [`path`] | unbiased path tracing with next-event estimation and MIS; direct light only |
+//! | `PhotonMap`, `FinalGather` | [`photon_map`] | the global map seen at the first non-delta surface; shadow rays + caustic map + final gathering |
 //!
-//! A scene with participating media (or an `interface` material) takes [`volume`]'s paths instead: the
-//! volumetric path tracer for `path` and `direct`, and the media-aware walk ([`visible_point_in`]) for the photon
-//! methods; a scene without media never runs medium code.
+//! The pass methods live in `render`: `render::progressive` (photon passes) and `render::vcm` (light and camera
+//! subpaths). A scene with participating media (or an `interface` material) takes [`volume`]'s paths instead:
+//! the volumetric path tracer for `Path` and `Direct`, and the media-aware walk ([`visible_point_in`]) for the
+//! photon methods; a scene without media never runs medium code.
 //!
-//! This module holds what they share: the dispatch ([`li`]), light sampling ([`sample_one_light`]), shadow rays
-//! ([`unoccluded`]) and the walk through mirror and glass to the first non-delta surface ([`visible_point`]).
-//! A new per-ray method is a file here, a variant of `scene::Integrator` and an arm of [`li`]; a method that
-//! keeps state across samples of a pixel (like progressive photon mapping) goes next to the strip loop in
-//! `render`.
+//! This module holds what they share: the one dispatch ([`estimate`]), light sampling ([`sample_one_light`]),
+//! shadow rays ([`unoccluded`]) and the walk through mirror and glass to the first non-delta surface
+//! ([`visible_point`]). A new per-ray estimator is a file here, a variant of `method::CameraEstimator` and an
+//! arm of [`estimate`].
 
-pub mod final_gather;
 pub mod path;
 pub mod photon_map;
 pub mod volume;
@@ -29,29 +26,39 @@ use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::Sampler;
 use crate::math::{Ray, power_heuristic};
 use crate::medium::Medium;
+use crate::method::{CameraEstimator, Technique};
 use crate::prepare::Prepared;
-use crate::scene::Integrator;
 use glam::Vec3A;
 
-/// Radiance arriving along `ray`, by the integrator of the prepared job's settings. Counts every traced ray in
-/// `rays`. Progressive photon mapping is not a per-ray method: `render::progressive` runs its passes and calls
-/// [`visible_point`] instead; here it gives direct light only. Nor are `vcm`, `bdpt` and `lt`, whose pass
-/// renderer traces its own light and camera subpaths; here they trace full paths as `path` does, which is what
-/// that renderer falls back to in a scene with media (through [`volume::li`]), one camera sample per pass.
+/// Radiance arriving along `ray`, by the camera estimator of the prepared job's method
+/// ([`Method::technique`]). Counts every traced ray in `rays`. Progressive photon mapping, `vcm`, `bdpt` and
+/// `lt` are not per-ray methods: their pass renderers (`render::progressive`, `render::vcm`) trace their own
+/// light paths; here progressive gives direct light (what its passes add photons to) and the subpath methods
+/// trace full paths (what their passes fall back to in a scene with media).
 pub fn li(prep: &Prepared, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
-    let settings = &prep.settings;
-    if let Some(media) = &prep.media {
-        return volume::li(prep, media, ray, s, rays);
-    }
-    match settings.integrator {
-        Integrator::Path | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
-            path::li(prep, settings.max_depth, ray, s, rays, false)
+    let estimator = match prep.settings.integrator.technique(prep.media.is_some(), prep.photons.is_some()) {
+        Technique::Samples(e) => e,
+        Technique::PhotonPasses => CameraEstimator::Direct,
+        Technique::Subpaths(_) => CameraEstimator::Path,
+    };
+    estimate(prep, estimator, ray, s, rays)
+}
+
+/// Radiance arriving along `ray` by `estimator`: the one dispatch of the per-ray methods, in scenes with and
+/// without media. A photon-map estimator without the job's maps gives direct light.
+pub fn estimate(prep: &Prepared, estimator: CameraEstimator, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
+    let depth = prep.settings.max_depth;
+    let path = |direct: bool, s: &mut Sampler, rays: &mut u64| match &prep.media {
+        None => path::li(prep, depth, ray, s, rays, direct),
+        Some(media) => volume::path_li(prep, media, depth, ray, s, rays, direct),
+    };
+    match (estimator, &prep.photons) {
+        (CameraEstimator::Path, _) => path(false, s, rays),
+        (CameraEstimator::Direct, _) | (CameraEstimator::PhotonMap | CameraEstimator::FinalGather, None) => {
+            path(true, s, rays)
         }
-        Integrator::Direct | Integrator::Progressive => path::li(prep, settings.max_depth, ray, s, rays, true),
-        Integrator::PhotonMap | Integrator::FinalGather => match &prep.photons {
-            Some(maps) => photon_map::li(prep, maps, ray, s, rays),
-            None => path::li(prep, settings.max_depth, ray, s, rays, true),
-        },
+        (CameraEstimator::PhotonMap, Some(maps)) => photon_map::li(prep, maps, false, ray, s, rays),
+        (CameraEstimator::FinalGather, Some(maps)) => photon_map::li(prep, maps, true, ray, s, rays),
     }
 }
 

@@ -1,20 +1,27 @@
-//! `photon-map` (the global map seen directly at the first non-delta surface, the origin's method) and the
-//! camera-path walk that `final-gather` shares with it.
+//! The photon-map methods that read maps traced before rendering:
+//! - `photon-map`: the global map seen directly at the first non-delta surface (the origin's method);
+//! - `final-gather`: Jensen's two passes. Direct light by shadow rays, caustics from the caustic map, and
+//!   indirect light by final gathering: BSDF-sampled rays to the next non-delta surface, where the global map
+//!   (through its precomputed irradiance, Christensen 1999) gives the radiance coming back.
+//!
+//! Both share the camera-path walk ([`walk`]).
 
 use super::volume::map_volume_estimate;
-use super::{VisiblePoint, final_gather, sample_one_light, visible_point_in};
+use super::{VisiblePoint, sample_one_light, visible_point, visible_point_in};
 use crate::Rgb;
-use crate::material::bsdf::TransportMode;
+use crate::geometry::Hit;
+use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::Ray;
 use crate::math::rng::Sampler;
 use crate::medium::Medium;
-use crate::photon::{PhotonMaps, photon_radiance};
+use crate::photon::{Gather, PhotonMaps, photon_radiance, with_scratch};
 use crate::prepare::Prepared;
-use crate::scene::Integrator;
+use glam::Vec3A;
 
 /// The photon methods `photon-map` and `final-gather` along one camera ray: the estimate at the first non-delta
-/// surface, and on through the delta lobe of a mixture surface.
-pub fn li(prep: &Prepared, maps: &PhotonMaps, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
+/// surface, and on through the delta lobe of a mixture surface. `final_gather` chooses Jensen's two passes (shadow
+/// rays, the caustic map and final gathering) over the global map seen directly.
+pub fn li(prep: &Prepared, maps: &PhotonMaps, final_gather: bool, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
     let settings = &prep.settings;
     let mut l = Rgb::ZERO;
     let mut ray = ray;
@@ -26,15 +33,14 @@ pub fn li(prep: &Prepared, maps: &PhotonMaps, ray: Ray, s: &mut Sampler, rays: &
         l += beta * (vp.le + vp.volume);
         let Some((b, hit, bsdf, wo)) = vp.vertex else { break };
         beta *= b;
-        match settings.integrator {
-            Integrator::FinalGather => {
-                l += beta * sample_one_light(prep, &hit, &bsdf, wo, vp.medium, s, rays, false);
-                if let Some(caustic) = &maps.caustic {
-                    l += beta * photon_radiance(caustic, &maps.estimator, &hit, &bsdf, wo);
-                }
-                l += beta * final_gather::indirect(prep, maps, &hit, &bsdf, wo, vp.medium, s, rays);
+        if final_gather {
+            l += beta * sample_one_light(prep, &hit, &bsdf, wo, vp.medium, s, rays, false);
+            if let Some(caustic) = &maps.caustic {
+                l += beta * photon_radiance(caustic, &maps.estimator, &hit, &bsdf, wo);
             }
-            _ => l += beta * photon_radiance(&maps.global, &maps.estimator, &hit, &bsdf, wo),
+            l += beta * gather_indirect(prep, maps, &hit, &bsdf, wo, vp.medium, s, rays);
+        } else {
+            l += beta * photon_radiance(&maps.global, &maps.estimator, &hit, &bsdf, wo);
         }
         // Continue only through a delta lobe: the non-delta part is what the estimate above counted.
         let (u, u2) = (s.next_f32(), s.next_2d());
@@ -68,5 +74,70 @@ pub fn walk(
             map_volume_estimate(v, maps.volume_gather, r, m, t_max, s)
         }),
         None => visible_point_in(prep, depth, ray, medium, s, rays, &mut |_, _, _, _, _| Rgb::ZERO),
+    }
+}
+
+/// Indirect light at `hit` by final gathering: BSDF-sampled rays (non-delta lobes) to the next non-delta
+/// surface, through mirror and glass, where the global map gives the radiance coming back. Emission found by
+/// these rays is not counted: direct light and caustics have their own estimates. In a scene with media the
+/// gather rays leave into the medium on their side of `hit` (`medium` is the one on `wo`'s side) and add the
+/// global volume map's estimate along the way ([`walk`]).
+#[allow(clippy::too_many_arguments)]
+fn gather_indirect(
+    prep: &Prepared,
+    maps: &PhotonMaps,
+    hit: &Hit,
+    bsdf: &Bsdf,
+    wo: Vec3A,
+    medium: Option<Medium>,
+    s: &mut Sampler,
+    rays: &mut u64,
+) -> Rgb {
+    let settings = &prep.settings;
+    let n = settings.photons.final_gather_rays.max(1);
+    let mut sum = Rgb::ZERO;
+    for _ in 0..n {
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { continue };
+        if bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
+            continue;
+        }
+        let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
+        let ray = hit.spawn_ray(bs.wi);
+        let vp = match &prep.media {
+            None => visible_point(prep, settings.max_depth, ray, s, rays),
+            Some(media) => {
+                let vp = walk(prep, maps, ray, media.after(hit, bs.wi, medium), s, rays);
+                sum += w * vp.volume;
+                vp
+            }
+        };
+        if let Some((b, h2, bsdf2, wo2)) = vp.vertex {
+            sum += w * b * gathered_radiance(maps, &h2, &bsdf2, wo2);
+        }
+    }
+    sum / n as f32
+}
+
+/// Radiance leaving a final-gather hit: the precomputed irradiance of the nearest entry facing the same way,
+/// reflected as by a diffuse surface, `L = f(wo, n)·E` (exact for Lambert and the mixture's diffuse part; an
+/// approximation for glossy surfaces, which final gathering blurs anyway). Falls back on the full estimate.
+fn gathered_radiance(maps: &PhotonMaps, hit: &Hit, bsdf: &Bsdf, wo: Vec3A) -> Rgb {
+    let Some(irr) = &maps.irradiance else { return photon_radiance(&maps.global, &maps.estimator, hit, bsdf, wo) };
+    let n = hit.normal_towards(wo);
+    let radius = match maps.estimator.gather {
+        Gather::KNearest { max_radius, .. } => max_radius,
+        Gather::Radius { radius } => radius,
+    };
+    let found = with_scratch(|scratch| {
+        irr.k_nearest(hit.p, 8, radius * radius, scratch);
+        scratch
+            .iter()
+            .map(|&(i, _)| irr.photons()[i as usize])
+            .find(|e| e.normal().dot(n) > 0.9 && (!maps.estimator.same_object || e.object == hit.object))
+    });
+    match found {
+        Some(e) => bsdf.f(wo, n, TransportMode::Radiance) * e.phi(),
+        None => photon_radiance(&maps.global, &maps.estimator, hit, bsdf, wo),
     }
 }

@@ -34,24 +34,7 @@ use crate::math::rng::Sampler;
 use crate::math::{Ray, offset_ray_origin_by_error};
 use crate::medium::{Equiangular, HenyeyGreenstein, MAX_CROSSINGS, Media, Medium};
 use crate::prepare::Prepared;
-use crate::scene::Integrator;
 use glam::Vec3A;
-
-/// Radiance along a camera ray in a scene with media, by the method of the job's settings. `vcm`, `bdpt` and
-/// `lt` have no volumetric version: in a scene with media they trace full paths here, one camera sample per pass.
-pub fn li(prep: &Prepared, media: &Media, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
-    let settings = &prep.settings;
-    match settings.integrator {
-        Integrator::Path | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt => {
-            path_li(prep, media, settings.max_depth, ray, s, rays, false)
-        }
-        Integrator::Direct | Integrator::Progressive => path_li(prep, media, settings.max_depth, ray, s, rays, true),
-        Integrator::PhotonMap | Integrator::FinalGather => match &prep.photons {
-            Some(maps) => super::photon_map::li(prep, maps, ray, s, rays),
-            None => path_li(prep, media, settings.max_depth, ray, s, rays, true),
-        },
-    }
-}
 
 /// The transmittance from `origin`, in `medium`, to `target`: 0 when a surface is in the way, else the product
 /// of each medium's `e^(−σt·d)` over the pieces between `interface` surfaces, whose crossing changes the medium

@@ -6,20 +6,20 @@
 //! are made): the coordinator checks a whole job ([`MemoryEstimate::job`]) against its machine, a worker checks
 //! each strip request ([`MemoryEstimate::strip`]) against its own.
 
-use crate::scene::{Integrator, RenderSettings};
+use crate::method::{PassStorage, StaticMaps};
+use crate::scene::RenderSettings;
 
-/// Bytes per pixel of an assembled image: the f32 RGB pixels (12), the strips' pixels as they arrive before
-/// being copied in (12), and the encoder's copy when the image is written (12).
-pub const IMAGE_BYTES_PER_PIXEL: u64 = 36;
+/// Bytes per pixel of an assembled image: the whole render's fixed-point sums (3 × i128 = 48), the f32 RGB
+/// pixels divided from them (12), and the encoder's copy when the image is written (12).
+pub const IMAGE_BYTES_PER_PIXEL: u64 = 72;
 
-/// Bytes per pixel of one strip on a worker: the rendered f32 RGB pixels (12), their wire bytes (12) and the
-/// chunked events that carry them (12).
-pub const STRIP_BYTES_PER_PIXEL: u64 = 36;
+/// Bytes per pixel of one block on a worker, or of a block as it arrives at the coordinator: its fixed-point
+/// sums (3 × i64 = 24), their wire bytes (24) and the chunked events that carry them (24).
+pub const STRIP_BYTES_PER_PIXEL: u64 = 72;
 
-/// Bytes per pixel of the pass sums of the methods that render in passes (progressive, vcm, bdpt, lt) in one
-/// place: the fixed-point sums of a block (3 × i64 = 24) and their wire bytes (24) on a worker, or the whole
-/// render's sums (3 × i128 = 48) on the coordinator.
-pub const PROGRESSIVE_BYTES_PER_PIXEL: u64 = 48;
+/// Bytes per pixel of the copy of one pass's sums that vcm, bdpt and lt keep apart before adding them in
+/// (3 × i64).
+pub const PASS_COPY_BYTES_PER_PIXEL: u64 = 24;
 
 /// Photon-map bytes a worker may hold at once while it traces progressive passes side by side.
 pub const PASS_MAPS_AT_ONCE_BYTES: u64 = 1 << 29;
@@ -65,9 +65,8 @@ pub struct MemoryEstimate {
     /// vcm, bdpt and lt: what one pass's light subpaths hold, one subpath per pixel of the whole image
     /// ([`MemoryEstimate::light_paths`]).
     pub light_paths: u64,
-    /// The pass sums of the methods that render in passes ([`Integrator::renders_passes`]): a block's on a
-    /// worker, the whole render's on the coordinator.
-    pub progressive: u64,
+    /// vcm, bdpt and lt: the copy of one pass's sums kept apart before it joins the block's.
+    pub pass_copy: u64,
     /// The k-nearest buffers of every render thread.
     pub k_nearest: u64,
 }
@@ -108,16 +107,10 @@ impl MemoryEstimate {
     pub fn job(width: u32, height: u32, strip_rows: u32, settings: &RenderSettings, threads: usize) -> Self {
         let strip = Self::strip(width, strip_rows.min(height), settings, threads);
         // The coordinator adds the blocks' sums into its own (a block as it arrives is counted in `strip`).
-        let sums = if settings.integrator.renders_passes() {
-            pixels(width, height).saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL)
-        } else {
-            0
-        };
         Self {
             image: pixels(width, height).saturating_mul(IMAGE_BYTES_PER_PIXEL).saturating_add(strip.image),
             photon_maps: Self::photon_maps(settings),
             light_paths: Self::light_paths(width, height, settings),
-            progressive: strip.progressive.saturating_add(sums),
             ..strip
         }
     }
@@ -125,15 +118,10 @@ impl MemoryEstimate {
     /// The bytes of the static photon maps the method reads (none for the others): what the coordinator holds
     /// when it traces them, and what a worker that traces them itself (`StripRequest.trace_photons`) holds.
     pub fn photon_maps(settings: &RenderSettings) -> u64 {
-        let paths = match settings.integrator {
-            Integrator::PhotonMap => u64::from(settings.photons.global),
-            Integrator::FinalGather => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
-            Integrator::Path
-            | Integrator::Direct
-            | Integrator::Progressive
-            | Integrator::Vcm
-            | Integrator::Bdpt
-            | Integrator::Lt => 0,
+        let paths = match settings.integrator.static_maps() {
+            StaticMaps::None => 0,
+            StaticMaps::Global => u64::from(settings.photons.global),
+            StaticMaps::GlobalAndCaustic => u64::from(settings.photons.global) + u64::from(settings.photons.caustic),
         };
         paths.saturating_mul(PHOTONS_PER_PATH * BYTES_PER_PHOTON)
     }
@@ -145,12 +133,11 @@ impl MemoryEstimate {
     /// leave a light-tracing splat; vertices and splats are gathered in parallel chunks and then joined, so
     /// they are counted twice. lt stores no vertex, only its splats.
     pub fn light_paths(width: u32, height: u32, settings: &RenderSettings) -> u64 {
-        let per_vertex = match settings.integrator {
-            Integrator::Vcm => 2 * (LIGHT_VERTEX_BYTES + SPLAT_BYTES) + MERGE_TREE_BYTES_PER_VERTEX,
-            Integrator::Bdpt => 2 * (LIGHT_VERTEX_BYTES + SPLAT_BYTES),
-            Integrator::Lt => 2 * SPLAT_BYTES,
-            _ => return 0,
-        };
+        let PassStorage::LightSubpaths(t) = settings.integrator.pass_storage() else { return 0 };
+        // Vertices are stored when the camera connects to them (or merges with them), and indexed to merge.
+        let vertex = if t.connect || t.merge { LIGHT_VERTEX_BYTES } else { 0 };
+        let tree = if t.merge { MERGE_TREE_BYTES_PER_VERTEX } else { 0 };
+        let per_vertex = 2 * (vertex + SPLAT_BYTES) + tree;
         // Each subpath's end index (4 bytes), also joined from the chunks.
         pixels(width, height).saturating_mul(PHOTONS_PER_PATH * per_vertex + 8)
     }
@@ -161,12 +148,12 @@ impl MemoryEstimate {
     /// a caller with a block of fewer rows sets it from the image's size ([`MemoryEstimate::light_paths`]).
     pub fn strip(width: u32, rows: u32, settings: &RenderSettings, threads: usize) -> Self {
         let px = pixels(width, rows);
-        let progressive = settings.integrator == Integrator::Progressive;
+        let storage = settings.integrator.pass_storage();
+        let progressive = storage == PassStorage::PhotonMap;
         // vcm merges within a fixed radius: no k-nearest buffers.
-        let gathers = settings.integrator.needs_photon_maps() || progressive;
-        // vcm, bdpt and lt also keep each pass's sums apart before adding them in (3 × i64 per pixel).
-        let pass_copy =
-            if matches!(settings.integrator, Integrator::Vcm | Integrator::Bdpt | Integrator::Lt) { 24 } else { 0 };
+        let gathers = settings.integrator.gathers_photons();
+        // vcm, bdpt and lt also keep each pass's sums apart before adding them in.
+        let pass_copy = if matches!(storage, PassStorage::LightSubpaths(_)) { PASS_COPY_BYTES_PER_PIXEL } else { 0 };
         Self {
             image: px.saturating_mul(STRIP_BYTES_PER_PIXEL),
             photon_maps: 0,
@@ -178,11 +165,7 @@ impl MemoryEstimate {
                 0
             },
             light_paths: Self::light_paths(width, rows, settings),
-            progressive: if settings.integrator.renders_passes() {
-                px.saturating_mul(PROGRESSIVE_BYTES_PER_PIXEL + pass_copy)
-            } else {
-                0
-            },
+            pass_copy: px.saturating_mul(pass_copy),
             k_nearest: if gathers {
                 u64::from(settings.photons.k).saturating_mul(BYTES_PER_NEIGHBOUR).saturating_mul(threads as u64)
             } else {
@@ -193,7 +176,7 @@ impl MemoryEstimate {
 
     /// The sum of the parts.
     pub fn total(&self) -> u64 {
-        [self.image, self.photon_maps, self.pass_map, self.light_paths, self.progressive, self.k_nearest]
+        [self.image, self.photon_maps, self.pass_map, self.light_paths, self.pass_copy, self.k_nearest]
             .iter()
             .fold(0u64, |a, &b| a.saturating_add(b))
     }
@@ -210,7 +193,7 @@ impl MemoryEstimate {
             (self.photon_maps, Part::PhotonMaps),
             (self.pass_map, Part::PassMap),
             (self.light_paths, Part::LightPaths),
-            (self.progressive, Part::Progressive),
+            (self.pass_copy, Part::PassCopy),
             (self.k_nearest, Part::KNearest),
         ];
         let (part, largest) = parts.iter().copied().max_by_key(|p| p.0).unwrap_or(parts[0]);
@@ -233,7 +216,7 @@ enum Part {
     PhotonMaps,
     PassMap,
     LightPaths,
-    Progressive,
+    PassCopy,
     KNearest,
 }
 
@@ -244,7 +227,7 @@ impl Part {
             Part::PhotonMaps => "render.photons.global",
             Part::PassMap => "render.photons.pass_photons",
             Part::LightPaths => "camera.width × camera.height",
-            Part::Progressive => "camera.width",
+            Part::PassCopy => "camera.width",
             Part::KNearest => "render.photons.k",
         }
     }
@@ -255,7 +238,7 @@ impl Part {
             Part::PhotonMaps => "photon maps",
             Part::PassMap => "progressive passes' photons",
             Part::LightPaths => "a pass's light subpaths",
-            Part::Progressive => "pass sums",
+            Part::PassCopy => "a pass's sums",
             Part::KNearest => "k-nearest buffers",
         }
     }
@@ -274,7 +257,7 @@ impl Part {
                 format!("about {} photon paths (global and caustic together) would fit", times(settings.photons.global))
             }
             Part::PassMap => format!("about {} photon paths per pass would fit", times(settings.photons.pass_photons)),
-            Part::Progressive => format!("an image about {} pixels wide would fit", times(width)),
+            Part::PassCopy => format!("an image about {} pixels wide would fit", times(width)),
             Part::KNearest => format!("k = {} would fit", times(settings.photons.k)),
         }
     }
@@ -296,6 +279,7 @@ pub fn machine_memory() -> Option<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::method::Method;
 
     #[test]
     fn a_huge_image_is_refused_with_what_fits() {
@@ -314,28 +298,29 @@ mod tests {
 
     #[test]
     fn photon_budgets_name_their_setting() {
-        let mut settings = RenderSettings { integrator: Integrator::PhotonMap, ..Default::default() };
+        let mut settings = RenderSettings { integrator: Method::PhotonMap, ..Default::default() };
         settings.photons.global = u32::MAX;
         let err = MemoryEstimate::job(64, 64, 64, &settings, 8).check(8 << 30, 64, 64, &settings).unwrap_err();
         assert_eq!(err.setting, "render.photons.global");
-        settings.integrator = Integrator::Progressive;
+        settings.integrator = Method::Progressive;
         settings.photons.pass_photons = u32::MAX;
         let err = MemoryEstimate::strip(64, 1, &settings, 8).check(8 << 30, 64, 1, &settings).unwrap_err();
         assert_eq!(err.setting, "render.photons.pass_photons");
     }
 
     #[test]
-    fn methods_in_passes_count_their_sums_and_light_subpaths() {
-        for integrator in Integrator::ALL {
+    fn every_block_counts_its_sums_and_subpath_methods_their_light_subpaths() {
+        for integrator in Method::ALL {
             let settings = RenderSettings { integrator, ..Default::default() };
             let e = MemoryEstimate::strip(64, 48, &settings, 8);
-            assert_eq!(e.progressive > 0, integrator.renders_passes(), "{integrator}");
-            let light = matches!(integrator, Integrator::Vcm | Integrator::Bdpt | Integrator::Lt);
+            assert_eq!(e.image, 64 * 48 * STRIP_BYTES_PER_PIXEL, "{integrator}");
+            let light = matches!(integrator, Method::Vcm | Method::Bdpt | Method::Lt);
+            assert_eq!(e.pass_copy > 0, light, "{integrator}");
             assert_eq!(e.light_paths > 0, light, "{integrator}");
-            assert_eq!(e.pass_map > 0, integrator == Integrator::Progressive, "{integrator}");
+            assert_eq!(e.pass_map > 0, integrator == Method::Progressive, "{integrator}");
         }
         // One light subpath per pixel: the image size is the setting to change.
-        let settings = RenderSettings { integrator: Integrator::Vcm, ..Default::default() };
+        let settings = RenderSettings { integrator: Method::Vcm, ..Default::default() };
         let e = MemoryEstimate::strip(8192, 8192, &settings, 8);
         let err = e.check(8 << 30, 8192, 8192, &settings).unwrap_err();
         assert_eq!(err.setting, "camera.width × camera.height", "{err}");

@@ -17,10 +17,9 @@ use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
 use crate::light::{Light, LightSet};
 use crate::material::{Material, TexelImage};
 use crate::medium::{Boundary, Media, Medium};
+use crate::method::RadiusSetting;
 use crate::photon::{Estimator, Gather, PhotonMaps};
-use crate::scene::{
-    Emission, GatherMode, Integrator, LightSpec, MediumSpec, Object, RenderSettings, Scene, SceneError,
-};
+use crate::scene::{Emission, GatherMode, LightSpec, MediumSpec, Object, RenderSettings, Scene, SceneError};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
 
@@ -57,7 +56,7 @@ impl Prepared {
         check_photon_radius(scene, &geometry, scene_path)?;
         let lights = lights(scene, &mut geometry, &emitters);
         let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
-        if media.is_some() && matches!(scene.render.integrator, Integrator::Vcm | Integrator::Bdpt | Integrator::Lt) {
+        if media.is_some() && scene.render.integrator.warns_in_media() {
             tracing::warn!(
                 "{}: {}'s subpaths do not cross participating media; its passes are the volumetric path tracer's \
                  samples",
@@ -145,13 +144,11 @@ fn scene_size(geometry: &Geometry) -> f32 {
 /// within it. Validation cannot do it: it does not know the scene's size before meshes are loaded.
 fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::path::Path) -> Result<(), SceneError> {
     let ph = &scene.render.photons;
-    let integrator = scene.render.integrator;
-    let (field, radius) = if integrator == Integrator::Vcm {
-        ("render.photons.merge_radius", ph.merge_radius)
-    } else if integrator.needs_photon_maps() || integrator == Integrator::Progressive {
-        ("render.photons.radius", ph.radius)
-    } else {
-        return Ok(());
+    let setting = scene.render.integrator.radius();
+    let (field, radius) = match setting {
+        RadiusSetting::None => return Ok(()),
+        RadiusSetting::Photon => (setting.field().unwrap_or_default(), ph.radius),
+        RadiusSetting::Merge => (setting.field().unwrap_or_default(), ph.merge_radius),
     };
     let Some(radius) = radius else { return Ok(()) };
     let size = scene_size(geometry);

@@ -24,8 +24,9 @@ use crate::material::bsdf::TransportMode;
 use crate::math::rng::Sampler;
 use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
 use crate::medium::HenyeyGreenstein;
+use crate::method::StaticMaps;
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
-use crate::scene::{Integrator, SceneError};
+use crate::scene::SceneError;
 use rayon::prelude::*;
 
 /// Paths traced per parallel chunk (fixed, so results do not depend on the thread pool).
@@ -287,7 +288,8 @@ impl Prepared {
 
     /// Whether the method reads a caustic map: `final-gather` on a scene with a mirror or glass.
     fn needs_caustic_map(&self) -> bool {
-        self.settings.integrator == Integrator::FinalGather && self.materials.iter().any(Material::has_specular)
+        self.settings.integrator.static_maps() == StaticMaps::GlobalAndCaustic
+            && self.materials.iter().any(Material::has_specular)
     }
 
     /// The photon paths [`Prepared::build_photon_maps`] traces: the global map's, and the caustic map's when the
@@ -320,7 +322,7 @@ impl Prepared {
             None
         };
         let estimator = self.estimator();
-        let irradiance = if self.settings.integrator == Integrator::FinalGather {
+        let irradiance = if self.settings.integrator.static_maps() == StaticMaps::GlobalAndCaustic {
             let entries = precompute_irradiance(&global, &estimator, 4);
             Some(PhotonMap::build(entries)?)
         } else {

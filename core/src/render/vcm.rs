@@ -36,7 +36,7 @@
 //! # Exact sums
 //! Every pixel's estimate of a pass is one fixed-point value, as for progressive photon mapping: the camera
 //! subpath's radiance rounded once, plus each light-tracing contribution that landed there rounded once, added
-//! as integers (so in any order), clamped to `[0, MAX_PASS_SUM]`. The image therefore depends only on (scene,
+//! as integers (so in any order), clamped to `[0, MAX_UNIT_SUM]`. The image therefore depends only on (scene,
 //! seed, passes), never on the farm's cut, the workers or the threads.
 //!
 //! # What it does not do
@@ -44,7 +44,9 @@
 //! one camera sample per pass: the subpaths here do not cross media. Light tracing (`lt`) sees nothing through
 //! mirror or glass directly in front of the camera, as no light subpath can connect there.
 
-use super::progressive::{MAX_PASS_SUM, PassSums, RadiusSequence, finite_or_zero, to_fixed};
+use super::radius::RadiusSequence;
+use super::samples::{camera_sample, for_each_pixel};
+use super::sums::{BlockSums, MAX_UNIT_SUM, finite_or_zero, to_fixed};
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
 use crate::integrator::unoccluded;
@@ -52,9 +54,9 @@ use crate::light::Light;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::{Domain, Sampler};
 use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
+use crate::method::Techniques;
 use crate::photon::Kernel;
 use crate::prepare::Prepared;
-use crate::scene::Integrator;
 use glam::Vec3A;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -70,29 +72,6 @@ const CHUNK: usize = 1024;
 #[inline]
 fn mis(x: f32) -> f32 {
     x * x
-}
-
-/// Which techniques an iteration uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Techniques {
-    /// Vertex connection: next-event estimation, connections between subpaths, and light tracing.
-    pub connect: bool,
-    /// Vertex merging.
-    pub merge: bool,
-    /// Light tracing only: light subpaths connected to the camera, plus emission seen directly; nothing else.
-    pub light_tracing_only: bool,
-}
-
-impl Techniques {
-    /// The techniques of a method (`vcm`, `bdpt`, `lt`); `None` for the other methods.
-    pub fn of(integrator: Integrator) -> Option<Self> {
-        match integrator {
-            Integrator::Vcm => Some(Self { connect: true, merge: true, light_tracing_only: false }),
-            Integrator::Bdpt => Some(Self { connect: true, merge: false, light_tracing_only: false }),
-            Integrator::Lt => Some(Self { connect: false, merge: false, light_tracing_only: true }),
-            _ => None,
-        }
-    }
 }
 
 /// The constants of one iteration (the report's §3.2 and SmallVCM's `InitIteration`).
@@ -450,7 +429,7 @@ pub fn camera_subpath(
     pass: u32,
     rays: &mut u64,
 ) -> Rgb {
-    let (mut ray, mut s) = super::camera_sample(prep, prep.settings.seed, x, y, pass);
+    let (mut ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, pass);
     let camera = &prep.camera;
     let tech = it.techniques;
     let cos_camera = ray.d.dot(camera.forward());
@@ -733,7 +712,7 @@ pub(super) fn render_passes(
     rows: Range<u32>,
     passes: Range<u32>,
     progress: &(dyn Fn(u32) -> bool + Sync),
-) -> Option<PassSums> {
+) -> Option<BlockSums> {
     let ph = &prep.settings.photons;
     let camera = &prep.camera;
     let width = camera.width as usize;
@@ -755,20 +734,14 @@ pub(super) fn render_passes(
         photon_paths += u64::from(camera.width) * u64::from(camera.height);
         rays += paths.rays;
         let light = LightSide { paths: &paths, tree: tree.as_ref() };
-        rays += pass_sums
-            .par_chunks_mut(3 * width)
-            .zip(rows.clone().into_par_iter())
-            .map(|(row, y)| {
-                let mut rays = 0u64;
-                for (x, px) in row.chunks_exact_mut(3).enumerate() {
-                    let c = camera_subpath(prep, &it, &light, (x as u32, y), pass, &mut rays);
-                    for (s, v) in px.iter_mut().zip(c.to_array()) {
-                        *s = to_fixed(v);
-                    }
-                }
-                rays
-            })
-            .sum::<u64>();
+        let pixel = |x, y, px: &mut [i64], rays: &mut u64| {
+            let c = camera_subpath(prep, &it, &light, (x, y), pass, rays);
+            for (s, v) in px.iter_mut().zip(c.to_array()) {
+                *s = to_fixed(v);
+            }
+        };
+        // Every row runs: an iteration is cancelled between iterations, not within one.
+        rays += for_each_pixel(width, &rows, &mut pass_sums, &|| true, pixel).unwrap_or(0);
         for &(pixel, c) in &paths.splats {
             let y = pixel / camera.width;
             if !rows.contains(&y) {
@@ -780,11 +753,11 @@ pub(super) fn render_passes(
             }
         }
         for (s, p) in sums.iter_mut().zip(&pass_sums) {
-            *s = s.saturating_add((*p).clamp(0, MAX_PASS_SUM));
+            *s = s.saturating_add((*p).clamp(0, MAX_UNIT_SUM));
         }
         if !progress(done as u32 + 1) {
             return None;
         }
     }
-    Some(PassSums { rows, passes, sums, rays, photon_paths, photon_seconds })
+    Some(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
 }

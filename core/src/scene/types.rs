@@ -46,100 +46,7 @@ pub struct CameraSpec {
     pub focus_distance: Option<f32>,
 }
 
-/// How pixels are computed: the method, in the scene file (`render.integrator`) and on the command line.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Integrator {
-    /// Unbiased path tracing with next-event estimation, MIS and Russian roulette (the reference).
-    #[default]
-    Path,
-    /// Direct lighting at the first non-specular hit, following mirror and glass.
-    Direct,
-    /// Direct visualisation of the global photon map at the first non-specular hit (what the origin did).
-    PhotonMap,
-    /// Jensen's two passes: direct light by shadow rays, caustics from the caustic map, indirect light from
-    /// the global map through final gathering.
-    FinalGather,
-    /// Probabilistic progressive photon mapping (Knaus & Zwicker 2011): independent passes of fresh photons,
-    /// each gathering with a radius that shrinks with the pass index; consistent, it converges to the path
-    /// tracer's answer, and its passes spread over the farm.
-    Progressive,
-    /// Vertex connection and merging (Georgiev et al. 2012): bidirectional path tracing whose connections and
-    /// photon merges are weighted by multiple importance sampling; iterations of fresh light subpaths with a
-    /// shrinking merging radius, spread over the farm like progressive passes.
-    Vcm,
-    /// Bidirectional path tracing: [`Integrator::Vcm`] without merging (unbiased).
-    Bdpt,
-    /// Light tracing: [`Integrator::Vcm`]'s light subpaths connected to the camera only (unbiased; sees no
-    /// light through mirror or glass in front of the camera).
-    Lt,
-}
-
-impl Integrator {
-    /// Every integrator, in the order the documentation lists them.
-    pub const ALL: [Integrator; 8] = [
-        Integrator::Path,
-        Integrator::Direct,
-        Integrator::PhotonMap,
-        Integrator::FinalGather,
-        Integrator::Progressive,
-        Integrator::Vcm,
-        Integrator::Bdpt,
-        Integrator::Lt,
-    ];
-
-    /// The name used in scene files and on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            Integrator::Path => "path",
-            Integrator::Direct => "direct",
-            Integrator::PhotonMap => "photon-map",
-            Integrator::FinalGather => "final-gather",
-            Integrator::Progressive => "progressive",
-            Integrator::Vcm => "vcm",
-            Integrator::Bdpt => "bdpt",
-            Integrator::Lt => "lt",
-        }
-    }
-
-    /// Whether the method renders in whole-image passes (iterations) rather than pixel samples: each pass
-    /// traces its own light paths, which may reach any pixel, so the farm hands out blocks of passes over the
-    /// whole image (`render.photons.passes` of them) instead of strips of samples.
-    pub fn renders_passes(self) -> bool {
-        matches!(self, Integrator::Progressive | Integrator::Vcm | Integrator::Bdpt | Integrator::Lt)
-    }
-
-    /// Whether this method needs photon maps built before rendering.
-    pub fn needs_photon_maps(self) -> bool {
-        matches!(self, Integrator::PhotonMap | Integrator::FinalGather)
-    }
-}
-
-impl std::fmt::Display for Integrator {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// A method name that is none of [`Integrator::ALL`].
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct UnknownIntegrator(pub String);
-
-impl std::fmt::Display for UnknownIntegrator {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let names: Vec<&str> = Integrator::ALL.iter().map(|i| i.name()).collect();
-        write!(f, "unknown integrator `{}`: expected one of {}", self.0, names.join(", "))
-    }
-}
-
-impl std::error::Error for UnknownIntegrator {}
-
-impl std::str::FromStr for Integrator {
-    type Err = UnknownIntegrator;
-    fn from_str(s: &str) -> Result<Self, UnknownIntegrator> {
-        Self::ALL.into_iter().find(|i| i.name() == s).ok_or_else(|| UnknownIntegrator(s.to_string()))
-    }
-}
+pub use crate::method::{Method, UnknownMethod};
 
 /// How photons are gathered for a radiance estimate.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -276,7 +183,7 @@ pub struct RenderSettings {
     pub max_depth: u32,
     /// The integrator; default `"path"`.
     #[serde(default)]
-    pub integrator: Integrator,
+    pub integrator: Method,
     /// Exposure in stops applied before tone mapping to 8-bit images; default 0.
     #[serde(default)]
     pub exposure: f32,
@@ -285,13 +192,24 @@ pub struct RenderSettings {
     pub photons: PhotonSettings,
 }
 
+impl RenderSettings {
+    /// The units of the whole job, at least 1: `spp` camera samples of each pixel, or `photons.passes` passes,
+    /// as the method's unit says ([`Method::unit`]).
+    pub fn units(&self) -> u32 {
+        match self.integrator.unit() {
+            crate::method::Unit::Samples => self.spp.max(1),
+            crate::method::Unit::Passes => self.photons.passes.max(1),
+        }
+    }
+}
+
 impl Default for RenderSettings {
     fn default() -> Self {
         Self {
             spp: default_spp(),
             seed: default_seed(),
             max_depth: default_max_depth(),
-            integrator: Integrator::Path,
+            integrator: Method::Path,
             exposure: 0.0,
             photons: PhotonSettings::default(),
         }

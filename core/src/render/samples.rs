@@ -1,0 +1,98 @@
+//! The sample driver: camera samples of every pixel of some rows through a per-ray estimator, and the one rows ×
+//! pixels loop that every method's block renderer runs its pixels through.
+//!
+//! Each pixel sample draws from its own stream identified by `(seed, x, y, sample)`, so a pixel's value does not
+//! depend on blocks, threads or workers. The samples of a pixel are the points of one padded, scrambled
+//! Sobol sequence ([`Sampler`]): their first draw places them in the pixel (a box filter), and every aligned
+//! block of 2^m samples has one sample in each elementary interval of area 2^−m, in the pixel and in every
+//! later 2D draw (lens, light, BSDF). Each point is uniformly distributed, so the estimate is unbiased. No sample
+//! depends on how many there will be, so the first `K` samples are the same points whether `K` was fixed ahead
+//! (`--spp`) or reached by a time or error bound.
+
+use super::sums::{BlockSums, add_fixed};
+use crate::Rgb;
+use crate::integrator::estimate;
+use crate::math::Ray;
+use crate::math::rng::Sampler;
+use crate::method::CameraEstimator;
+use crate::prepare::Prepared;
+use glam::Vec2;
+use rayon::prelude::*;
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+/// Runs `pixel(x, y, sums, rays)` on every pixel of rows `rows`, in parallel over rows: `sums` holds 3 values
+/// per pixel, row-major, and `pixel` adds (or writes) its pixel's three. `row_done` is called after each row and
+/// returns `false` to cancel the rows not yet started; then `None`. Returns the rays the pixels counted.
+pub(super) fn for_each_pixel<F>(
+    width: usize,
+    rows: &Range<u32>,
+    sums: &mut [i64],
+    row_done: &(dyn Fn() -> bool + Sync),
+    pixel: F,
+) -> Option<u64>
+where
+    F: Fn(u32, u32, &mut [i64], &mut u64) + Sync,
+{
+    let cancelled = AtomicBool::new(false);
+    let rays = sums
+        .par_chunks_mut(3 * width)
+        .zip(rows.clone().into_par_iter())
+        .map(|(row, y)| {
+            if cancelled.load(Ordering::Relaxed) {
+                return 0;
+            }
+            let mut rays = 0u64;
+            for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                pixel(x as u32, y, px, &mut rays);
+            }
+            if !row_done() {
+                cancelled.store(true, Ordering::Relaxed);
+            }
+            rays
+        })
+        .sum();
+    (!cancelled.load(Ordering::Relaxed)).then_some(rays)
+}
+
+/// Samples `samples` of every pixel of rows `rows` by `estimator`: each pixel channel's sum of their fixed-point
+/// values. `progress` gets the samples finished so far (rows done scaled to samples) and returns `false` to
+/// cancel (then `None`).
+pub(super) fn render(
+    prep: &Prepared,
+    estimator: CameraEstimator,
+    rows: Range<u32>,
+    samples: Range<u32>,
+    progress: &(dyn Fn(u32) -> bool + Sync),
+) -> Option<BlockSums> {
+    let width = prep.camera.width as usize;
+    let (n, rows_n) = (u64::from(samples.end.saturating_sub(samples.start)), rows.len().max(1) as u64);
+    let done = AtomicU32::new(0);
+    let row_done = || {
+        let d = u64::from(done.fetch_add(1, Ordering::Relaxed) + 1);
+        progress((d * n / rows_n) as u32)
+    };
+    let mut sums = vec![0i64; 3 * width * rows.len()];
+    let rays = for_each_pixel(width, &rows, &mut sums, &row_done, |x, y, px, rays| {
+        for i in samples.clone() {
+            add_fixed(px, pixel_sample(prep, estimator, x, y, i, rays));
+        }
+    })?;
+    Some(BlockSums { rows, units: samples, sums, rays, photon_paths: 0, photon_seconds: 0.0 })
+}
+
+/// Sample `i` of pixel `(x, y)`: the radiance `estimator` returns along its camera ray.
+fn pixel_sample(prep: &Prepared, estimator: CameraEstimator, x: u32, y: u32, i: u32, rays: &mut u64) -> Rgb {
+    let (ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, i);
+    estimate(prep, estimator, ray, &mut s, rays)
+}
+
+/// Camera ray and sample stream of sample `i` in pixel `(x, y)`. The stream's first draw places the sample in
+/// the pixel (a box filter), its second on the lens; the samples of a pixel are one Sobol sequence, so both
+/// are stratified over `i` (see [`Sampler`]).
+pub(super) fn camera_sample(prep: &Prepared, seed: u64, x: u32, y: u32, i: u32) -> (Ray, Sampler) {
+    let mut s = Sampler::for_pixel(seed, x, y, i);
+    let film = Vec2::new(x as f32, y as f32) + s.next_2d();
+    let ray = prep.camera.ray(film, s.next_2d());
+    (ray, s)
+}
