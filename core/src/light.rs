@@ -21,10 +21,11 @@
 
 use crate::Rgb;
 use crate::geometry::{Geometry, Hit};
-use crate::math::Ray;
-use crate::math::luminance;
+use crate::math::rng::Sampler;
+use crate::math::{Frame, Ray, cosine_hemisphere, luminance, offset_ray_origin_by_error, uniform_sphere};
 use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};
+use std::f32::consts::{FRAC_1_PI, PI};
 
 /// A light.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -65,6 +66,29 @@ pub struct LightSample {
     /// The sampled point, moved off an area light's surface towards the shaded point (so a shadow ray that ends
     /// there does not hit the light itself, whatever the scale of the coordinates).
     pub p: Vec3A,
+}
+
+/// A ray leaving a light, sampled in proportion to its emission ([`Light::sample_le`]).
+#[derive(Clone, Copy, Debug)]
+pub struct LeSample {
+    /// The ray: from the light's position, or from the sampled surface point moved off the surface along the
+    /// ray, in a cosine-distributed direction on the emitting side.
+    pub ray: Ray,
+    /// The ray's throughput: emitted radiance × cos / (pick × point density × direction density), W·m⁻²·sr⁻¹
+    /// over the densities; for a point light, intensity / (pick × 1/4π).
+    pub beta: Rgb,
+    /// The density of this point and direction together (area × solid angle, the light choice `pick`
+    /// included): Georgiev et al. 2012's emission pdf.
+    pub pdf_w: f32,
+    /// The density of the point alone, as next-event estimation picks it (pick / area; `pick` for a point
+    /// light).
+    pub pdf_a: f32,
+    /// The cosine at the light between the ray and the emitting side's normal (1 for a point light).
+    pub cos: f32,
+    /// Whether the light is a delta (point) light.
+    pub delta: bool,
+    /// The surface the ray leaves: the primitive's object and its geometric normal (`None` for a point light).
+    pub surface: Option<(u32, Vec3A)>,
 }
 
 impl Light {
@@ -117,6 +141,56 @@ impl Light {
                 // Off the light by its sampled point's error bound (pbrt-v4 §6.8.6), towards the shaded point.
                 let p = crate::math::offset_ray_origin_by_error(lp, lp_error, ln, towards);
                 Some(LightSample { wi, dist, li: le, pdf, delta: false, p })
+            }
+        }
+    }
+
+    /// Samples a ray leaving the light in proportion to its emission (Veach 1997, §10.2.2; pbrt-v4's
+    /// `SampleLe`): a point light emits uniformly over the sphere; an area light from a point uniform by area,
+    /// in a cosine-distributed direction on its emitting side (either side, with equal probability, when
+    /// two-sided). `pick` is the probability with which the light was chosen (its densities include it).
+    /// Draws two 2D samples, then one more for the side of a two-sided light. `None` for a light whose
+    /// primitive is missing.
+    pub fn sample_le(&self, geometry: &Geometry, pick: f32, s: &mut Sampler) -> Option<LeSample> {
+        let (u, u2) = (s.next_2d(), s.next_2d());
+        match *self {
+            Light::Point { p, intensity } => {
+                let pdf = pick / (4.0 * PI);
+                let ray = Ray::new(p, uniform_sphere(u));
+                Some(LeSample {
+                    ray,
+                    beta: intensity / pdf,
+                    pdf_w: pdf,
+                    pdf_a: pick,
+                    cos: 1.0,
+                    delta: true,
+                    surface: None,
+                })
+            }
+            Light::Area { prim, le, two_sided, .. } => {
+                let pr = geometry.prims.get(prim as usize)?;
+                let (p, p_error, n) = pr.shape.sample_area_with_error(u);
+                let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
+                let local = cosine_hemisphere(u2);
+                let d = Frame::from_normal(side).to_world(local);
+                let cos = local.z;
+                let (pdf_a, pdf_w) = self.pdf_le(pick, cos);
+                let ray = Ray::new(offset_ray_origin_by_error(p, p_error, side, d), d);
+                let beta = le * (cos / pdf_w);
+                Some(LeSample { ray, beta, pdf_w, pdf_a, cos, delta: false, surface: Some((pr.object, n)) })
+            }
+        }
+    }
+
+    /// The densities with which [`Light::sample_le`] emits from a point of this light in a direction at cosine
+    /// `cos` to the emitting side's normal, the light chosen with probability `pick`: (point density, point and
+    /// direction density) = `(pick/A, pick/A · cos/π · ½ if two-sided)`; `(pick, pick/4π)` for a point light.
+    pub fn pdf_le(&self, pick: f32, cos: f32) -> (f32, f32) {
+        match *self {
+            Light::Point { .. } => (pick, pick / (4.0 * PI)),
+            Light::Area { two_sided, area, .. } => {
+                let pdf_a = pick / area;
+                (pdf_a, pdf_a * cos * FRAC_1_PI * if two_sided { 0.5 } else { 1.0 })
             }
         }
     }

@@ -1,10 +1,14 @@
 //! core's modules form the layers of the table "Core's layers" in docs/ARCHITECTURE.md (the order of the data
 //! flow): each module's code names only modules listed above it, so there is no import cycle between them, and
-//! every module of `lib.rs` has its place in the table. Test modules and comments are not counted.
+//! every module of `lib.rs` has its place in the table. Inside the modules, no file names a file that names it
+//! back, through any chain of files (the graph of `layers`, which `tools/structure.py` draws too). Test modules
+//! and comments are not counted.
 
 #![allow(clippy::unwrap_used)]
 
-use std::collections::BTreeMap;
+mod layers;
+
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 /// The top-level modules that `lib.rs` declares, sorted.
@@ -108,4 +112,53 @@ fn the_scanner_sees_grouped_and_plain_paths() {
     let modules = vec!["math".to_string(), "scene".to_string(), "render".to_string()];
     let text = "use crate::math::Ray;\nuse crate::{scene, render::x};\n// crate::nothing\n#[cfg(test)]\nuse crate::y;";
     assert_eq!(uses(text, &modules), ["math", "scene", "render"]);
+}
+
+#[test]
+fn no_file_of_core_names_a_file_that_names_it_back() {
+    let cycles = layers::crate_cycles(&Path::new(env!("CARGO_MANIFEST_DIR")).join("src"));
+    assert!(
+        cycles.is_empty(),
+        "import cycles between core's files (python3 tools/structure.py --why shows them too):\n{}",
+        cycles.join("\n")
+    );
+}
+
+#[test]
+fn the_file_graph_follows_uses_paths_and_re_exports() {
+    let files = [
+        ("lib.rs", "pub mod a;\npub mod b;\nmod c;\n#[cfg(test)]\nmod tests;\n"),
+        (
+            "a/mod.rs",
+            "//! [`crate::c::nothing`]\npub mod x;\npub mod y;\npub use y::*;\nuse crate::{b::{self, Thing as T}, c};\n\
+             fn f() -> &'static str { x::g(); \"crate::c::h {\" }\n#[cfg(test)]\nmod tests {\n    use crate::c::z;\n}\n",
+        ),
+        (
+            "a/x.rs",
+            "use super::Item;\npub fn g() {\n    self::inner::k();\n    super::super::b::f();\n}\n\
+             mod inner {\n    pub fn k() {\n        super::g();\n    }\n}\n",
+        ),
+        ("a/y.rs", "pub struct Item;\npub fn h() -> char {\n    crate::a::x::g();\n    '{'\n}\n"),
+        ("b.rs", "pub struct Thing;\npub fn f() {}\npub(in crate::a) fn q() {}\n"),
+        ("c.rs", "pub fn h() {}\n"),
+        ("tests.rs", "use crate::a::x::g;\n"),
+    ];
+    let sources: Vec<(String, String)> = files.iter().map(|(p, t)| (p.to_string(), t.to_string())).collect();
+    let graph = layers::graph(&sources);
+    let named: BTreeMap<&str, BTreeSet<&str>> =
+        graph.iter().map(|(f, to)| (f.as_str(), to.keys().map(String::as_str).collect())).collect();
+    let expected: BTreeMap<&str, BTreeSet<&str>> = [
+        ("lib.rs", vec![]),
+        ("a/mod.rs", vec!["a/x.rs", "a/y.rs", "b.rs", "c.rs"]),
+        ("a/x.rs", vec!["a/y.rs", "b.rs"]),
+        ("a/y.rs", vec!["a/x.rs"]),
+        ("b.rs", vec![]),
+        ("c.rs", vec![]),
+    ]
+    .into_iter()
+    .map(|(f, to)| (f, to.into_iter().collect()))
+    .collect();
+    assert_eq!(named, expected);
+    assert_eq!(graph["a/x.rs"]["a/y.rs"], [(1, "super::Item".to_string())]);
+    assert_eq!(layers::cycles(&graph), [["a/x.rs", "a/y.rs", "a/x.rs"]]);
 }

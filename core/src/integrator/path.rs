@@ -6,7 +6,7 @@
 //! with the power heuristic (Veach 1997, §9.2); the BSDF sample then continues the path, ended by Russian
 //! roulette once its throughput, without the η² of refraction, falls below 1. The direct integrator stops after that first BSDF sample.
 
-use super::sample_one_light;
+use super::direct::sample_one_light;
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
 use crate::material::bsdf::TransportMode;

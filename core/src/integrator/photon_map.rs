@@ -6,8 +6,9 @@
 //!
 //! Both share the camera-path walk ([`walk`]).
 
+use super::direct::sample_one_light;
+use super::visible::{VisiblePoint, visible_point, visible_point_in};
 use super::volume::map_volume_estimate;
-use super::{VisiblePoint, sample_one_light, visible_point, visible_point_in};
 use crate::Rgb;
 use crate::geometry::Hit;
 use crate::material::bsdf::{Bsdf, TransportMode};

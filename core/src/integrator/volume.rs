@@ -16,7 +16,7 @@
 //! block them, as in a scene without media.
 //!
 //! # The photon methods
-//! A camera walk ([`super::visible_point_in`]) crosses each medium segment to its surface and estimates the
+//! A camera walk ([`super::visible::visible_point_in`]) crosses each medium segment to its surface and estimates the
 //! radiance scattered towards the camera at one point of the segment, sampled from the truncated free-flight
 //! density ([`Medium::sample_segment`]): a ray march with one stochastic step, whose value is the volume photon
 //! estimate there ([`crate::photon::volume_radiance`], a 3D box kernel, Jensen & Christensen 1998, §3.3).
@@ -24,6 +24,7 @@
 //! mapping estimates single scattering by [`in_scattering`] at the same point and reads its pass's volume map of
 //! photons that have bounced at least once.
 
+use super::direct::{sample_one_light, shadow_transmittance};
 use super::path::{emission, roulette};
 use crate::Rgb;
 use crate::geometry::NONE;
@@ -35,51 +36,6 @@ use crate::math::{Ray, offset_ray_origin_by_error};
 use crate::medium::{Equiangular, HenyeyGreenstein, MAX_CROSSINGS, Media, Medium};
 use crate::prepare::Prepared;
 use glam::Vec3A;
-
-/// The transmittance from `origin`, in `medium`, to `target`: 0 when a surface is in the way, else the product
-/// of each medium's `e^(−σt·d)` over the pieces between `interface` surfaces, whose crossing changes the medium
-/// ([`Media::after`]). The last 10⁻⁵ of the distance is not tested (the target has been moved off its surface).
-/// Counts the rays it traces.
-pub fn shadow_transmittance(
-    prep: &Prepared,
-    media: &Media,
-    origin: Vec3A,
-    target: Vec3A,
-    mut medium: Option<Medium>,
-    rays: &mut u64,
-) -> Rgb {
-    let mut o = origin;
-    let mut tr = Rgb::ONE;
-    for _ in 0..=MAX_CROSSINGS {
-        let d = target - o;
-        let dist = d.length();
-        if dist.is_nan() || dist <= 0.0 {
-            return tr;
-        }
-        let ray = Ray::new(o, d / dist);
-        let reach = dist * (1.0 - 1e-5);
-        if !media.interfaces {
-            *rays += 1;
-            if prep.geometry.occluded(&ray, reach) {
-                return Rgb::ZERO;
-            }
-            return medium.map_or(tr, |m| tr * m.transmittance(dist));
-        }
-        *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, reach) else {
-            return medium.map_or(tr, |m| tr * m.transmittance(dist));
-        };
-        if !prep.materials.get(hit.material as usize).is_some_and(Material::is_interface) {
-            return Rgb::ZERO;
-        }
-        if let Some(m) = medium {
-            tr *= m.transmittance(hit.t);
-        }
-        medium = media.after(&hit, ray.d, medium);
-        o = hit.spawn_ray(ray.d).o;
-    }
-    Rgb::ZERO
-}
 
 /// Which candidate distances [`in_scattering`] uses: both with MIS (what the renderer does), or one alone
 /// (for the tests that compare their variance).
@@ -383,7 +339,7 @@ pub fn path_li(
             break;
         }
         if bsdf.has_non_delta() {
-            l += beta * super::sample_one_light(prep, &hit, &bsdf, wo, medium, s, rays, true);
+            l += beta * sample_one_light(prep, &hit, &bsdf, wo, medium, s, rays, true);
         }
         let (u, u2) = (s.next_f32(), s.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };

@@ -18,11 +18,10 @@
 use super::Prepared;
 use crate::Rgb;
 use crate::geometry::NONE;
-use crate::light::Light;
 use crate::material::Material;
 use crate::material::bsdf::TransportMode;
+use crate::math::Ray;
 use crate::math::rng::Sampler;
-use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
 use crate::medium::HenyeyGreenstein;
 use crate::method::StaticMaps;
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
@@ -152,20 +151,12 @@ pub fn trace_path(
     let Some(l) = prep.lights.lights.get(light) else { return };
     let media = prep.media.as_ref();
     let mut medium = media.and_then(|m| m.lights.get(light).copied().flatten());
-    let (u, u2) = (s.next_2d(), s.next_2d());
-    let mut ray = match *l {
-        Light::Point { p, .. } => Ray::new(p, uniform_sphere(u)),
-        Light::Area { prim, two_sided, .. } => {
-            let Some(pr) = prep.geometry.prims.get(prim as usize) else { return };
-            let (p, p_error, n) = pr.shape.sample_area_with_error(u);
-            let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
-            let d = Frame::from_normal(side).to_world(cosine_hemisphere(u2));
-            if let Some(media) = media {
-                medium = media.leaving(pr.object, n, d, medium);
-            }
-            Ray::new(offset_ray_origin_by_error(p, p_error, side, d), d)
-        }
-    };
+    // The light's choice is the caller's (photons per light in proportion to power): its densities are unused.
+    let Some(e) = l.sample_le(&prep.geometry, 1.0, s) else { return };
+    if let (Some(media), Some((object, n))) = (media, e.surface) {
+        medium = media.leaving(object, n, e.ray.d, medium);
+    }
+    let mut ray = e.ray;
     let mut power = phi;
     let mut specular_only = true;
     let (mut depth, mut crossings) = (0u32, 0u32);

@@ -53,7 +53,7 @@ use crate::integrator::unoccluded;
 use crate::light::Light;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::{Domain, Sampler};
-use crate::math::{Frame, Ray, cosine_hemisphere, offset_ray_origin_by_error, uniform_sphere};
+use crate::math::{Ray, offset_ray_origin_by_error};
 use crate::method::Techniques;
 use crate::photon::Kernel;
 use crate::prepare::Prepared;
@@ -257,28 +257,11 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32) -> LightPat
 /// (eqs. 31–33, with delta lights as eqs. 48–50).
 fn emit(prep: &Prepared, it: &Iteration, s: &mut Sampler) -> Option<(Ray, Rgb, MisState)> {
     let (i, pick) = prep.lights.choose(s.next_f32())?;
-    let (u, u2) = (s.next_2d(), s.next_2d());
-    let (ray, beta, emission_pdf_w, direct_pdf_a, cos_light, delta) = match *prep.lights.lights.get(i)? {
-        Light::Point { p, intensity } => {
-            let pdf = pick / (4.0 * PI);
-            (Ray::new(p, uniform_sphere(u)), intensity / pdf, pdf, pick, 1.0, true)
-        }
-        Light::Area { prim, le, two_sided, area } => {
-            let (p, p_error, n) = prep.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u);
-            let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
-            let local = cosine_hemisphere(u2);
-            let d = Frame::from_normal(side).to_world(local);
-            let cos = local.z;
-            let sides = if two_sided { 0.5 } else { 1.0 };
-            let pdf = pick / area * cos * FRAC_1_PI * sides;
-            let ray = Ray::new(offset_ray_origin_by_error(p, p_error, side, d), d);
-            (ray, le * (cos / pdf), pdf, pick / area, cos, false)
-        }
-    };
-    if !(emission_pdf_w > 0.0 && beta.is_finite()) {
+    let e = prep.lights.lights.get(i)?.sample_le(&prep.geometry, pick, s)?;
+    if !(e.pdf_w > 0.0 && e.beta.is_finite()) {
         return None;
     }
-    Some((ray, beta, MisState::emitted(it, direct_pdf_a, emission_pdf_w, cos_light, delta)))
+    Some((e.ray, e.beta, MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta)))
 }
 
 /// Traces one light subpath: stores its vertices (when connecting or merging) and connects each to the camera
@@ -503,10 +486,8 @@ fn emission(prep: &Prepared, it: &Iteration, hit: &Hit, wo: Vec3A, state: &MisSt
     if it.techniques.light_tracing_only {
         return Rgb::ZERO;
     }
-    let Light::Area { area, two_sided, .. } = *light else { return Rgb::ZERO };
-    let pick = prep.lights.pmf(hit.light as usize);
-    let direct_pdf_a = pick / area;
-    let emission_pdf_w = direct_pdf_a * wo.dot(hit.n).abs() * FRAC_1_PI * if two_sided { 0.5 } else { 1.0 };
+    // A point light has no surface to be found on: its `le` is zero, returned above.
+    let (direct_pdf_a, emission_pdf_w) = light.pdf_le(prep.lights.pmf(hit.light as usize), wo.dot(hit.n).abs());
     le * weights::emission(state, direct_pdf_a, emission_pdf_w)
 }
 

@@ -33,14 +33,15 @@
 //! (`overrides`), validation of what the types cannot express (`validate`), and the line of a field in the
 //! file for errors (`source`). A new object kind is a variant of [`Object`] with its checks in `validate`.
 
+mod limits;
 mod overrides;
 mod source;
 pub mod types;
 mod validate;
 
+pub(crate) use limits::image_side;
+pub use limits::{MAX_CAMERA_COORDINATE, MAX_IMAGE_SIDE, MAX_K, MAX_PASSES};
 pub use types::*;
-pub(crate) use validate::image_side;
-pub use validate::{MAX_CAMERA_COORDINATE, MAX_IMAGE_SIDE, MAX_K, MAX_PASSES};
 
 use crate::material::Material;
 use serde::{Deserialize, Serialize};

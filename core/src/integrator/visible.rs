@@ -1,0 +1,109 @@
+//! The walk of a camera path through mirror and glass (and across media) to its first non-delta vertex, which
+//! the photon methods estimate at.
+
+use crate::Rgb;
+use crate::geometry::{Hit, NONE};
+use crate::material::bsdf::{Bsdf, TransportMode};
+use crate::math::Ray;
+use crate::math::rng::Sampler;
+use crate::medium::Medium;
+use crate::prepare::Prepared;
+use glam::Vec3A;
+
+/// A camera path followed through delta lobes to its first non-delta vertex: the emission it saw on the way,
+/// and, if it found one, the vertex.
+pub struct VisiblePoint {
+    /// Emission seen through delta lobes (already weighted).
+    pub le: Rgb,
+    /// In a scene with media, the radiance the walk's volume estimate gave along the way (already weighted).
+    pub volume: Rgb,
+    /// Throughput to the vertex, the vertex, its BSDF and the direction back along the path.
+    pub vertex: Option<(Rgb, Hit, Bsdf, Vec3A)>,
+    /// The medium on the path's side of the vertex (`None` in vacuum and in scenes without media).
+    pub medium: Option<Medium>,
+}
+
+/// What a walk through a medium adds along one segment: given the ray, the medium (not vacuum), the distance
+/// to the surface (∞ when none), the sampler and the ray count, the radiance scattered towards the ray's
+/// origin along the segment, not yet weighted by the path's throughput.
+pub type VolumeEstimate<'a> = dyn FnMut(&Ray, &Medium, f32, &mut Sampler, &mut u64) -> Rgb + 'a;
+
+/// Follows `ray` through mirror and glass to the first surface with a non-delta component. At a surface with
+/// both (the mixture), the path continues only if the delta lobe is sampled, and that surface is the vertex.
+/// In a scene without media.
+pub fn visible_point(prep: &Prepared, max_depth: u32, ray: Ray, s: &mut Sampler, rays: &mut u64) -> VisiblePoint {
+    visible_point_in(prep, max_depth, ray, None, s, rays, &mut |_, _, _, _, _| Rgb::ZERO)
+}
+
+/// [`visible_point`] from a ray that starts in `medium`: along every segment in a medium the walk adds
+/// `volume`'s estimate and carries on to the surface with the segment's transmittance (no free flight: every
+/// walk reaches its surface, so photon methods estimate both the volume and the surface behind it).
+pub fn visible_point_in(
+    prep: &Prepared,
+    max_depth: u32,
+    mut ray: Ray,
+    mut medium: Option<Medium>,
+    s: &mut Sampler,
+    rays: &mut u64,
+    volume: &mut VolumeEstimate,
+) -> VisiblePoint {
+    let mut beta = Rgb::ONE;
+    let mut le = Rgb::ZERO;
+    let mut in_volume = Rgb::ZERO;
+    // Crossings of `interface` surfaces are not bounces.
+    let (mut bounces, mut crossings) = (0u32, 0u32);
+    while bounces <= max_depth {
+        *rays += 1;
+        let found = prep.geometry.intersect(&ray, f32::INFINITY);
+        if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
+            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
+            in_volume += beta * volume(&ray, &m, t_max, s, rays);
+            beta *= m.transmittance(t_max);
+            if beta == Rgb::ZERO {
+                break;
+            }
+        }
+        let Some(hit) = found else { break };
+        let wo = -ray.d;
+        if hit.light != NONE
+            && let Some(light) = prep.lights.lights.get(hit.light as usize)
+        {
+            le += beta * light.le(&hit, wo);
+        }
+        let Some(material) = prep.materials.get(hit.material as usize) else { break };
+        if let Some(media) = &prep.media
+            && material.is_interface()
+        {
+            // Not a vertex: the walk goes on in the medium on the other side.
+            crossings += 1;
+            if crossings > crate::medium::MAX_CROSSINGS {
+                break;
+            }
+            medium = media.after(&hit, ray.d, medium);
+            ray = hit.spawn_ray(ray.d);
+            continue;
+        }
+        let bsdf = material.bsdf(&hit, &prep.textures);
+        if bsdf.black_from(wo) {
+            break;
+        }
+        if bsdf.has_non_delta() {
+            return VisiblePoint { le, volume: in_volume, vertex: Some((beta, hit, bsdf, wo)), medium };
+        }
+        let (u, u2) = (s.next_f32(), s.next_2d());
+        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
+        if bs.pdf.is_nan() || bs.pdf <= 0.0 {
+            break;
+        }
+        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
+        if !beta.is_finite() || beta == Rgb::ZERO {
+            break;
+        }
+        if let Some(media) = &prep.media {
+            medium = media.after(&hit, bs.wi, medium);
+        }
+        ray = hit.spawn_ray(bs.wi);
+        (bounces, crossings) = (bounces + 1, 0);
+    }
+    VisiblePoint { le, volume: in_volume, vertex: None, medium }
+}
