@@ -55,6 +55,15 @@ struct Cli {
     /// Test only: claim this math mode instead of the real one.
     #[arg(long, hide = true)]
     test_math_mode: Option<String>,
+    // Test only: the faults to commit.
+    #[command(flatten)]
+    faults: FaultFlags,
+}
+
+/// The hidden flags of the faults a test makes a worker commit ([`Fault`]); when several are given, the last
+/// in this list wins.
+#[derive(clap::Args, Debug)]
+struct FaultFlags {
     /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
     #[arg(long, hide = true, value_name = "N")]
     test_corrupt_strips: Option<u32>,
@@ -70,6 +79,29 @@ struct Cli {
     /// Test only: serve blobs to peers with a byte changed, as a bit flip in memory or on the wire would.
     #[arg(long, hide = true)]
     test_corrupt_blobs: bool,
+}
+
+impl FaultFlags {
+    /// The fault the flags ask for.
+    fn fault(&self) -> Fault {
+        let mut fault = Fault::None;
+        if let Some(n) = self.test_corrupt_strips {
+            fault = Fault::CorruptPixels(n);
+        }
+        if self.test_nan_strips {
+            fault = Fault::NanPixels;
+        }
+        if let Some(n) = self.test_panic_strips {
+            fault = Fault::Panic(n);
+        }
+        if let Some(ms) = self.test_delay_ms {
+            fault = Fault::Delay(ms);
+        }
+        if self.test_corrupt_blobs {
+            fault = Fault::CorruptBlobs;
+        }
+        fault
+    }
 }
 
 fn main() {
@@ -125,21 +157,7 @@ fn run(cli: Cli) -> Result<()> {
     if let Some(mode) = cli.test_math_mode {
         config.math_mode = mode;
     }
-    if let Some(n) = cli.test_corrupt_strips {
-        config.fault = Fault::CorruptPixels(n);
-    }
-    if cli.test_nan_strips {
-        config.fault = Fault::NanPixels;
-    }
-    if let Some(n) = cli.test_panic_strips {
-        config.fault = Fault::Panic(n);
-    }
-    if let Some(ms) = cli.test_delay_ms {
-        config.fault = Fault::Delay(ms);
-    }
-    if cli.test_corrupt_blobs {
-        config.fault = Fault::CorruptBlobs;
-    }
+    config.fault = cli.faults.fault();
     let config_tls_off = config.tls.is_none();
     let worker = Worker::new(config)?;
     let threads = worker.threads();
