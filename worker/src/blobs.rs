@@ -271,6 +271,7 @@ impl Worker {
         let deadline = tokio::time::Instant::now() + self.transfer_allowance(blob.len() as u64);
         let header = pb::BlobHeader { id, size: blob.len() as u64 };
         let chunks = photon_proto::blob_chunks(header, blob);
+        #[cfg(feature = "fault-injection")]
         let chunks = self.faults.served_chunks(chunks);
         let (tx, rx) = mpsc::channel(3);
         tokio::spawn(async move {

@@ -39,7 +39,8 @@ pub struct Config {
     /// The math mode this worker claims (the real one, [`photon_core::math::fmath::MODE`], unless a test pretends
     /// otherwise).
     pub math_mode: String,
-    /// Test-only fault injection.
+    /// Test-only fault injection (the cargo feature `fault-injection`).
+    #[cfg(feature = "fault-injection")]
     pub fault: crate::fault::Fault,
 }
 
@@ -61,6 +62,7 @@ impl Default for Config {
             max_calls_per_peer: photon_proto::transport::CALLS_PER_PEER,
             build_id: photon_proto::BUILD_ID.to_owned(),
             math_mode: photon_core::math::fmath::MODE.to_owned(),
+            #[cfg(feature = "fault-injection")]
             fault: crate::fault::Fault::None,
         }
     }

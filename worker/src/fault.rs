@@ -1,5 +1,7 @@
-//! Test-only fault injection: a worker that commits a chosen fault ([`Fault`]) lets the end-to-end tests prove
-//! that the coordinator catches it. The render and blob paths call the [`Injector`]'s hooks.
+//! Test-only fault injection, compiled only with the cargo feature `fault-injection`: a worker that commits a
+//! chosen fault ([`Fault`]) lets the end-to-end tests prove that the coordinator catches it. The render and blob
+//! paths call the [`Injector`]'s hooks under the same feature, so a worker built without it (a release binary)
+//! has no fault code in them.
 
 use photon_proto::pb;
 use std::sync::atomic::{AtomicU32, Ordering};

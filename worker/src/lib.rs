@@ -44,6 +44,14 @@
 //!
 //! A strip request's refusals name the field ([`check_strip_request`]); a per-peer refusal names the cap.
 //!
+//! ## Fault injection
+//!
+//! With the cargo feature `fault-injection` (off by default) a worker can commit chosen faults (`Fault`: corrupt
+//! or impossible sums, panics, delays, corrupt blobs served to peers; the hidden `--test-…` flags of
+//! photon-worker), so the end-to-end tests in `tests/` can prove that the coordinator catches them; they build
+//! the worker with the feature. Release binaries (`cargo build --release -p photon-worker`) are built without
+//! it: they have neither the fault code nor its flags.
+//!
 //! The command-line options are in the repository's `README.md` (photon-worker `--help` lists them);
 //! `docs/ARCHITECTURE.md` places the worker in the design.
 //!
@@ -72,11 +80,13 @@ mod blobs;
 pub mod cache;
 mod config;
 pub mod disk_store;
+#[cfg(feature = "fault-injection")]
 mod fault;
 mod server;
 mod strip;
 
 pub use config::{Config, Limits};
+#[cfg(feature = "fault-injection")]
 pub use fault::Fault;
 pub use server::serve;
 pub use strip::{MAX_FRAME_BYTES, MAX_TEXTURES, StripOrder, check_strip_request};
@@ -108,6 +118,7 @@ pub struct Worker {
     /// Strip requests waiting for the render slot ([`Config::max_queue`]).
     waiting: Arc<AtomicUsize>,
     /// The fault this worker commits, and the strips it has left to commit it in.
+    #[cfg(feature = "fault-injection")]
     faults: Arc<fault::Injector>,
     /// Calls in progress per peer ([`Config::max_calls_per_peer`]).
     peers: Arc<PeerCalls>,
@@ -143,6 +154,7 @@ impl Worker {
             upload_bytes: Arc::new(Semaphore::new(upload_budget)),
             serving: Arc::new(Semaphore::new(SERVED_AT_ONCE)),
             waiting: Arc::new(AtomicUsize::new(0)),
+            #[cfg(feature = "fault-injection")]
             faults: Arc::new(fault::Injector::new(config.fault)),
             peers: Arc::new(PeerCalls::new(config.max_calls_per_peer)),
             config,

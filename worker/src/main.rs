@@ -3,9 +3,12 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
-use photon_worker::{Config, Fault, Worker};
+use photon_worker::{Config, Worker};
 use std::io::Write;
 use std::path::PathBuf;
+
+#[cfg(feature = "fault-injection")]
+use photon_worker::Fault;
 
 /// A photon render worker: renders strips of prepared scenes for a coordinator, over gRPC.
 #[derive(Parser, Debug)]
@@ -55,13 +58,15 @@ struct Cli {
     /// Test only: claim this math mode instead of the real one.
     #[arg(long, hide = true)]
     test_math_mode: Option<String>,
-    // Test only: the faults to commit.
+    // Test only: the faults to commit, with the cargo feature `fault-injection` (release binaries have none).
+    #[cfg(feature = "fault-injection")]
     #[command(flatten)]
     faults: FaultFlags,
 }
 
 /// The hidden flags of the faults a test makes a worker commit ([`Fault`]); when several are given, the last
 /// in this list wins.
+#[cfg(feature = "fault-injection")]
 #[derive(clap::Args, Debug)]
 struct FaultFlags {
     /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
@@ -81,6 +86,7 @@ struct FaultFlags {
     test_corrupt_blobs: bool,
 }
 
+#[cfg(feature = "fault-injection")]
 impl FaultFlags {
     /// The fault the flags ask for.
     fn fault(&self) -> Fault {
@@ -157,7 +163,10 @@ fn run(cli: Cli) -> Result<()> {
     if let Some(mode) = cli.test_math_mode {
         config.math_mode = mode;
     }
-    config.fault = cli.faults.fault();
+    #[cfg(feature = "fault-injection")]
+    {
+        config.fault = cli.faults.fault();
+    }
     let config_tls_off = config.tls.is_none();
     let worker = Worker::new(config)?;
     let threads = worker.threads();

@@ -302,6 +302,7 @@ struct StripContext {
     pool: Arc<rayon::ThreadPool>,
     blobs: Arc<BlobCache>,
     jobs: Arc<JobCache>,
+    #[cfg(feature = "fault-injection")]
     faults: Arc<crate::fault::Injector>,
 }
 
@@ -335,6 +336,7 @@ impl StripContext {
         // The rows and units were checked against this frame by `check_strip_request` before the call started.
         let job = self.jobs.get_or_make(order, &self.pool, &self.blobs)?;
         tracing::info!(strip = order.strip, attempt = order.attempt, rows = ?order.rows, "rendering strip");
+        #[cfg(feature = "fault-injection")]
         self.faults.before_render(order.strip, &|| tx.is_closed())?;
         let t0 = Instant::now();
         let progress = |units: u32| {
@@ -346,6 +348,7 @@ impl StripContext {
         let block = self.pool.install(|| render_block(&job.prep, &block, &progress));
         let block = block.ok_or_else(|| Status::cancelled("the coordinator cancelled the strip"))?;
         let sums = block.sums;
+        #[cfg(feature = "fault-injection")]
         let sums = self.faults.before_checksum(order.strip, sums);
         let bytes = photon_proto::sums_to_bytes(&sums);
         let mut summary = pb::StripSummary {
@@ -357,6 +360,7 @@ impl StripContext {
             ..Default::default()
         };
         job.report_load(&mut summary);
+        #[cfg(feature = "fault-injection")]
         let bytes = self.faults.after_checksum(order.strip, bytes);
         Ok(strip_events(&bytes, job.prep.camera.width, order.rows.start, summary))
     }
@@ -407,6 +411,7 @@ impl Worker {
             pool: self.pool.clone(),
             blobs: self.blobs.clone(),
             jobs: self.jobs.clone(),
+            #[cfg(feature = "fault-injection")]
             faults: self.faults.clone(),
         };
         let slot = self.render_slot.clone();
