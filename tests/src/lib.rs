@@ -2,10 +2,12 @@
 //!
 //! `photon-coordinator` and `photon-worker` are other packages' binaries, so Cargo does not build them for these
 //! tests and `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build -p photon-coordinator -p
-//! photon-worker` once per test process
+//! photon-worker --features photon-worker/fault-injection` once per test process
 //! (a no-op when the binary is fresh; it builds it when missing or stale) in the profile and target folder of the
 //! running test executable, then returns `<target>/<profile>/photon-coordinator`, found from
-//! `std::env::current_exe()` (`<target>/<profile>/deps/<test>-…`).
+//! `std::env::current_exe()` (`<target>/<profile>/deps/<test>-…`). The worker gets the feature `fault-injection`
+//! for the tests' `--test-…` fault flags, as this package's dev-dependency on it does, so the tests and the
+//! binaries share one build of photon-worker.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -34,7 +36,10 @@ pub fn coordinator() -> &'static Path {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
         let mut build = Command::new(cargo);
-        build.args(["build", "--quiet", "-p", "photon-coordinator", "-p", "photon-worker", "--manifest-path"]);
+        build.args(["build", "--quiet", "-p", "photon-coordinator", "-p", "photon-worker"]);
+        // The tests' fault flags (photon-worker's hidden --test-…), with the feature set of this package's
+        // dev-dependency on the worker: a different set would build photon-worker a second time.
+        build.args(["--features", "photon-worker/fault-injection", "--manifest-path"]);
         build.arg(&manifest);
         build.arg("--target-dir").arg(target_dir);
         match profile.as_str() {

@@ -3,9 +3,12 @@
 
 use anyhow::{Context, Result, bail};
 use clap::Parser;
-use photon_worker::{Config, Fault, Worker};
+use photon_worker::{Config, Worker};
 use std::io::Write;
 use std::path::PathBuf;
+
+#[cfg(feature = "fault-injection")]
+use photon_worker::Fault;
 
 /// A photon render worker: renders strips of prepared scenes for a coordinator, over gRPC.
 #[derive(Parser, Debug)]
@@ -55,6 +58,17 @@ struct Cli {
     /// Test only: claim this math mode instead of the real one.
     #[arg(long, hide = true)]
     test_math_mode: Option<String>,
+    // Test only: the faults to commit, with the cargo feature `fault-injection` (release binaries have none).
+    #[cfg(feature = "fault-injection")]
+    #[command(flatten)]
+    faults: FaultFlags,
+}
+
+/// The hidden flags of the faults a test makes a worker commit ([`Fault`]); when several are given, the last
+/// in this list wins.
+#[cfg(feature = "fault-injection")]
+#[derive(clap::Args, Debug)]
+struct FaultFlags {
     /// Test only: corrupt one pixel of each of the first N strips after computing their checksum.
     #[arg(long, hide = true, value_name = "N")]
     test_corrupt_strips: Option<u32>,
@@ -70,6 +84,30 @@ struct Cli {
     /// Test only: serve blobs to peers with a byte changed, as a bit flip in memory or on the wire would.
     #[arg(long, hide = true)]
     test_corrupt_blobs: bool,
+}
+
+#[cfg(feature = "fault-injection")]
+impl FaultFlags {
+    /// The fault the flags ask for.
+    fn fault(&self) -> Fault {
+        let mut fault = Fault::None;
+        if let Some(n) = self.test_corrupt_strips {
+            fault = Fault::CorruptPixels(n);
+        }
+        if self.test_nan_strips {
+            fault = Fault::NanPixels;
+        }
+        if let Some(n) = self.test_panic_strips {
+            fault = Fault::Panic(n);
+        }
+        if let Some(ms) = self.test_delay_ms {
+            fault = Fault::Delay(ms);
+        }
+        if self.test_corrupt_blobs {
+            fault = Fault::CorruptBlobs;
+        }
+        fault
+    }
 }
 
 fn main() {
@@ -125,20 +163,9 @@ fn run(cli: Cli) -> Result<()> {
     if let Some(mode) = cli.test_math_mode {
         config.math_mode = mode;
     }
-    if let Some(n) = cli.test_corrupt_strips {
-        config.fault = Fault::CorruptPixels(n);
-    }
-    if cli.test_nan_strips {
-        config.fault = Fault::NanPixels;
-    }
-    if let Some(n) = cli.test_panic_strips {
-        config.fault = Fault::Panic(n);
-    }
-    if let Some(ms) = cli.test_delay_ms {
-        config.fault = Fault::Delay(ms);
-    }
-    if cli.test_corrupt_blobs {
-        config.fault = Fault::CorruptBlobs;
+    #[cfg(feature = "fault-injection")]
+    {
+        config.fault = cli.faults.fault();
     }
     let config_tls_off = config.tls.is_none();
     let worker = Worker::new(config)?;

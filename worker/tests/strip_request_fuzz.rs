@@ -127,9 +127,15 @@ fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
             r.row_start = rng.below(48) as u32;
             r.row_end = r.row_start + 1 + rng.below(u64::from(48 - r.row_start)) as u32;
         }
-        match check_strip_request(&r, &limits) {
-            Ok(frame) => {
+        match check_strip_request(r.clone(), &limits) {
+            Ok(order) => {
                 accepted += 1;
+                let frame = order.frame();
+                assert_eq!(
+                    (order.rows(), order.units()),
+                    (r.row_start..r.row_end, r.unit_start..r.unit_end),
+                    "case {case}"
+                );
                 let (w, h) = (frame.camera.width, frame.camera.height);
                 assert!((1..=MAX_IMAGE_SIDE).contains(&w) && (1..=MAX_IMAGE_SIDE).contains(&h), "case {case}");
                 assert!(r.row_start < r.row_end && r.row_end <= h, "case {case}: rows {}..{}", r.row_start, r.row_end);
