@@ -129,8 +129,8 @@ fn corrupted_pixels_are_caught_and_rendered_again() {
     assert!(bits(&out) == want, "a corrupted strip reached the image");
 }
 
-/// A strip whose pixels match the worker's checksum but hold a NaN was computed so by the renderer: every worker
-/// of this build would do the same. The render stops at once, the worker is not blamed, and the error says it is
+/// A strip whose sums match the worker's checksum but hold a value no block of its units can add up to (the
+/// fault flag writes -1) was computed so by the renderer: every worker of this build would do the same. The render stops at once, the worker is not blamed, and the error says it is
 /// a bug with the pixel and the method instead of suggesting `--resume`.
 #[test]
 fn a_non_finite_strip_is_reported_as_a_bug_not_a_faulty_worker() {
@@ -140,7 +140,7 @@ fn a_non_finite_strip_is_reported_as_a_bug_not_a_faulty_worker() {
     let o = render(&out, QUICK, &["--workers", &buggy.addr]);
     assert!(!o.status.success(), "{}", text(&o));
     let all = text(&o);
-    assert!(all.contains("holds NaN: not a radiance"), "{all}");
+    assert!(all.contains("holds the sum -1: not the sum of"), "{all}");
     assert!(all.contains("bug in photon") && all.contains("method `photon-map`"), "{all}");
     assert!(!all.contains("--resume") && !all.contains("dropped"), "{all}");
     assert!(!dir.join("out.exr.partial").exists());
