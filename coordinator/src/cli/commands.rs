@@ -1,15 +1,15 @@
 //! The commands of the command line: `render`, `compare`, `reference` and `sweep`, each from its parsed
 //! arguments ([`crate::cli`]) to its output files and the lines it prints.
 
+use crate::cli::overrides::{self, Setting};
 use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
-use crate::delivery::{self, MapDelivery};
 use crate::farm::{self, FarmError};
 use crate::fleet;
+use crate::job::delivery::{self, MapDelivery};
+use crate::job::prepared_cache::PreparedCache;
 use crate::job::{Partial, partial_path, prepare_job};
-use crate::live::{self, Board};
-use crate::overrides::{self, Setting};
-use crate::prepared_cache::PreparedCache;
-use crate::report::{Summary, print_workers};
+use crate::out::live::{self, Board};
+use crate::out::report::{Summary, print_workers};
 use crate::sweep::{self, sig};
 use anyhow::{Context, Result, bail};
 use photon_core::image_io::{Format, Image};
@@ -87,17 +87,17 @@ fn render(args: RenderArgs) -> Result<()> {
     let (mut job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
     if bound.is_some() {
         // Whole-image blocks of passes or samples, in rounds.
-        job.passes = Some(crate::bounded::MAX_PASSES);
+        job.passes = Some(crate::farm::bounded::MAX_PASSES);
     }
     if delivery.is_some_and(|d| d.mode == MapDelivery::Peers) {
-        job.swarm = Some(std::sync::Arc::new(crate::swarm::Swarm::new(tls_ca.clone())));
+        job.swarm = Some(std::sync::Arc::new(crate::fleet::swarm::Swarm::new(tls_ca.clone())));
     }
     let (width, height) = (job.width, job.height);
     let settings = scene.render.clone();
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
 
-    let mut interrupts = rt.block_on(async { crate::interrupt::watch_signals() });
+    let mut interrupts = rt.block_on(async { crate::fleet::interrupt::watch_signals() });
     let options = farm::Options {
         token,
         tls_ca,
@@ -154,7 +154,7 @@ fn render(args: RenderArgs) -> Result<()> {
                     "live page: the render is over; serving its final state at http://{}/ until Ctrl-C",
                     server.addr()
                 );
-                crate::interrupt::interrupted(Some(&mut interrupts)).await;
+                crate::fleet::interrupt::interrupted(Some(&mut interrupts)).await;
             }
             server.stop().await;
         });
@@ -200,7 +200,7 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> 
     let rows = if bounded || r.integrator.renders_passes() {
         c.height
     } else {
-        rows_per_strip.unwrap_or_else(|| crate::scheduler::rows_per_strip_for(c.height, 1))
+        rows_per_strip.unwrap_or_else(|| crate::farm::scheduler::rows_per_strip_for(c.height, 1))
     };
     let estimate = photon_core::prepare::budget::MemoryEstimate::job(c.width, c.height, rows, r, threads);
     tracing::info!(bytes = estimate.total(), budget, "memory estimate");
@@ -212,7 +212,7 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> 
 /// pixel (or passes, for progressive, vcm, bdpt and lt) become the most a bounded render takes, the range its
 /// blocks are numbered in.
 /// Refuses `--target-error` for the methods whose error no number of samples lowers, and `--spp`/`--passes`.
-fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::bounded::Bound>> {
+fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::farm::bounded::Bound>> {
     if args.time.is_none() && args.target_error.is_none() {
         return Ok(None);
     }
@@ -229,11 +229,11 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         );
     }
     if in_passes {
-        r.photons.passes = crate::bounded::MAX_PASSES;
+        r.photons.passes = crate::farm::bounded::MAX_PASSES;
     } else {
-        r.spp = crate::bounded::MAX_PASSES;
+        r.spp = crate::farm::bounded::MAX_PASSES;
     }
-    Ok(Some(crate::bounded::Bound {
+    Ok(Some(crate::farm::bounded::Bound {
         deadline: args.time.map(|t| t0 + t),
         target_error: args.target_error,
         // The gather (merge) radius of progressive photon mapping and vcm shrinks with α; bdpt and lt are unbiased.
@@ -458,7 +458,7 @@ async fn sweep_rows(
     args: &SweepArgs,
     base: &[String],
     reference: &Image,
-    addrs: &[crate::session::WorkerAddr],
+    addrs: &[crate::fleet::session::WorkerAddr],
     options: farm::Options,
 ) -> Result<Vec<sweep::Row>> {
     let mut rows = Vec::new();
@@ -544,7 +544,7 @@ mod tests {
             let (spp, passes) = (scene.render.spp, scene.render.photons.passes);
             let b = bound(&args, &mut scene, Instant::now()).unwrap().unwrap();
             let in_passes = scene.render.integrator.renders_passes();
-            let max = crate::bounded::MAX_PASSES;
+            let max = crate::farm::bounded::MAX_PASSES;
             assert_eq!(
                 (scene.render.spp, scene.render.photons.passes),
                 if in_passes { (spp, max) } else { (max, passes) },

@@ -1,9 +1,9 @@
 //! What a render tells the user at the end: one line per worker ([`WorkerReport`], printed by
 //! [`print_workers`]) and the summary line of `render` ([`Summary`]).
 
-use crate::delivery::MapDelivery;
 use crate::farm::Outcome;
-use crate::prepared_cache::Hits;
+use crate::job::delivery::MapDelivery;
+use crate::job::prepared_cache::Hits;
 use photon_core::method::{PassStorage, StaticMaps};
 use photon_core::scene::RenderSettings;
 use std::fmt;
@@ -111,7 +111,7 @@ pub struct Summary<'a> {
     /// Which prepared blobs came from the cache, when there is one.
     pub hits: Option<Hits>,
     /// How the workers got the photon maps, for the methods that read them.
-    pub delivery: Option<crate::delivery::Decision>,
+    pub delivery: Option<crate::job::delivery::Decision>,
 }
 
 impl Summary<'_> {

@@ -15,11 +15,11 @@
 //! What the user should hear about during the render ([`Warning`]) is collected by the handlers and printed by
 //! the loop.
 //!
-//! A worker whose connection is lost is called again with backoff ([`crate::rejoin`]) while the render goes on;
+//! A worker whose connection is lost is called again with backoff ([`crate::fleet::rejoin`]) while the render goes on;
 //! when it answers it rejoins after the same hello and build-id check as at the start, with the blobs it lacks
 //! shipped again. A worker that holds strips and says nothing past its silence limit is shown as `stalled`. When
 //! no worker is left the render waits [`Options::rejoin_patience`] for one to come back before it gives up.
-//! SIGINT or SIGTERM ([`crate::interrupt`]) stops the render as a failure does: the strips in flight are
+//! SIGINT or SIGTERM ([`crate::fleet::interrupt`]) stops the render as a failure does: the strips in flight are
 //! cancelled and the finished ones kept for `--resume` ([`FarmError::Interrupted`]).
 //!
 //! A result is accepted only if it covers exactly the strip's rows in order, has the right number of floats,
@@ -27,15 +27,20 @@
 //! that loses the race, or a worker's strips when it is declared lost or dropped, are cancelled by dropping
 //! their calls (the worker then stops rendering them).
 
-use crate::interrupt::{Interrupt, Interrupts, interrupted};
-use crate::job::{Job, Partial};
-use crate::report::{Warning, WorkerReport, progress_bar};
-use crate::scheduler::{
-    Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
+pub mod bounded;
+pub mod scheduler;
+
+use crate::fleet::interrupt::{Interrupt, Interrupts, interrupted};
+use crate::fleet::session::{
+    self, Client, Delivered, Ready, SessionError, StripError, StripResult, WorkerAddr, fetch_strip,
 };
-use crate::session::{self, Client, Delivered, Ready, SessionError, StripError, StripResult, WorkerAddr, fetch_strip};
+use crate::job::{Job, Partial};
+use crate::out::report::{Warning, WorkerReport, progress_bar};
 use photon_core::render::sums::SumAccumulator;
 use photon_proto::pb;
+use scheduler::{
+    Assignment, Completion, FailureOutcome, Policy, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
+};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::time::{Duration, Instant};
@@ -49,8 +54,8 @@ pub struct Options {
     pub token: Option<String>,
     /// TLS: the PEM certificate authority that signed the workers' certificates (plaintext when `None`).
     pub tls_ca: Option<Vec<u8>>,
-    /// Rows per strip (default: [`crate::scheduler::rows_per_strip_for`]); for progressive photon mapping, passes
-    /// per block (default: [`crate::scheduler::passes_per_block_for`]).
+    /// Rows per strip (default: [`crate::farm::scheduler::rows_per_strip_for`]); for progressive photon mapping, passes
+    /// per block (default: [`crate::farm::scheduler::passes_per_block_for`]).
     pub rows_per_strip: Option<u32>,
     /// The scheduling policy.
     pub policy: Policy,
@@ -58,15 +63,15 @@ pub struct Options {
     pub resume: Option<Partial>,
     /// Show a progress bar.
     pub progress: bool,
-    /// Signals that stop the render, keeping the finished strips ([`crate::interrupt::watch_signals`]).
+    /// Signals that stop the render, keeping the finished strips ([`crate::fleet::interrupt::watch_signals`]).
     pub interrupt: Option<Interrupts>,
     /// How long the render waits, once no worker is left, for a lost one to come back before it gives up.
     pub rejoin_patience: Duration,
-    /// Render in rounds until a time or an estimated error ([`crate::bounded`]); the job must then hand out pass
+    /// Render in rounds until a time or an estimated error ([`crate::farm::bounded`]); the job must then hand out pass
     /// blocks ([`Job::passes`]).
-    pub bound: Option<crate::bounded::Bound>,
+    pub bound: Option<crate::farm::bounded::Bound>,
     /// Where the render's state is published for the live page (`render --serve`), if anywhere.
-    pub live: Option<std::sync::Arc<crate::live::Board>>,
+    pub live: Option<std::sync::Arc<crate::out::live::Board>>,
 }
 
 /// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
@@ -108,7 +113,7 @@ pub struct Outcome {
     /// Strips resumed from a partial file.
     pub resumed: usize,
     /// What a render bounded by time or error did: passes (samples) in the image, rounds, why it stopped.
-    pub bounded: Option<crate::bounded::BoundedReport>,
+    pub bounded: Option<crate::farm::bounded::BoundedReport>,
 }
 
 /// Why a render stopped before the image was complete.
@@ -280,9 +285,9 @@ struct Farm<'a> {
     interrupted: Option<Interrupt>,
     /// A render bounded by time or error: its rounds (the round in flight's sums join `passes` when it is
     /// complete) and why it stopped.
-    rounds: Option<crate::bounded::Rounds>,
+    rounds: Option<crate::farm::bounded::Rounds>,
     /// The live page's board ([`Options::live`]).
-    live: Option<std::sync::Arc<crate::live::Board>>,
+    live: Option<std::sync::Arc<crate::out::live::Board>>,
 }
 
 impl<'a> Farm<'a> {
@@ -296,14 +301,14 @@ impl<'a> Farm<'a> {
         let n = workers.len() as u32;
         let pixels = 3 * job.width as usize * job.height as usize;
         // A bounded render starts with its first round; the others with the whole job.
-        let mut rounds = options.bound.clone().map(|b| crate::bounded::Rounds::new(b, pixels));
+        let mut rounds = options.bound.clone().map(|b| crate::farm::bounded::Rounds::new(b, pixels));
         let first = rounds.as_mut().map(|r| r.first(workers.len()));
         let rows_per_strip = match (&options.resume, options.rows_per_strip, job.passes, first) {
             (_, _, _, Some(plan)) => plan.per_block,
             (Some(p), _, _, _) => p.rows_per_strip,
             (None, Some(r), _, _) => r,
-            (None, None, Some(passes), _) => crate::scheduler::passes_per_block_for(passes, n),
-            (None, None, None, _) => crate::scheduler::rows_per_strip_for(job.height, n),
+            (None, None, Some(passes), _) => crate::farm::scheduler::passes_per_block_for(passes, n),
+            (None, None, None, _) => crate::farm::scheduler::rows_per_strip_for(job.height, n),
         };
         // The scheduler cuts one axis: the units of whole-image blocks (the methods that render in passes, and a
         // bounded render), or the rows of strips that each take every unit of the job.
@@ -407,11 +412,11 @@ impl<'a> Farm<'a> {
         }
         // A bounded render well past its deadline stops with its finished rounds; the round in flight is dropped.
         if let Some(rounds) = self.rounds.as_mut().filter(|r| r.completed() > 0 && r.overdue()) {
-            rounds.stop(crate::bounded::StopReason::Time);
+            rounds.stop(crate::farm::bounded::StopReason::Time);
             return Some(Ok(()));
         }
         if let Some(signal) = self.interrupted {
-            return Some(self.keep_rounds(crate::bounded::StopReason::Interrupted, Stop::Interrupted(signal)));
+            return Some(self.keep_rounds(crate::farm::bounded::StopReason::Interrupted, Stop::Interrupted(signal)));
         }
         if !(self.unresolved == 0 && self.sched.all_workers_gone()) {
             self.none_active_since = None;
@@ -420,7 +425,7 @@ impl<'a> Farm<'a> {
         let since = *self.none_active_since.get_or_insert(now);
         let waiting = self.members.iter().any(|m| m.rejoining.is_some());
         (!waiting || now.saturating_sub(since) >= self.rejoin_patience)
-            .then(|| self.keep_rounds(crate::bounded::StopReason::NoWorkers, Stop::NoWorkers))
+            .then(|| self.keep_rounds(crate::farm::bounded::StopReason::NoWorkers, Stop::NoWorkers))
     }
 
     /// A bounded render whose round is complete: its sums join the image, and the next round is queued, or the
@@ -445,7 +450,7 @@ impl<'a> Farm<'a> {
 
     /// How a render that must stop for `reason` ends: a bounded one with a complete round keeps its rounds;
     /// the others fail with `stop`.
-    fn keep_rounds(&mut self, reason: crate::bounded::StopReason, stop: Stop) -> Result<(), Stop> {
+    fn keep_rounds(&mut self, reason: crate::farm::bounded::StopReason, stop: Stop) -> Result<(), Stop> {
         match self.rounds.as_mut().filter(|r| r.completed() > 0) {
             Some(rounds) => {
                 rounds.stop(reason);
@@ -604,10 +609,11 @@ impl<'a> Farm<'a> {
             let (tx, job, addr) = (self.tx.clone(), self.job.clone(), m.addr.clone());
             let (token, tls_ca) = (self.token.clone(), self.tls_ca.clone());
             let task = tokio::spawn(async move {
-                let event = match crate::rejoin::call_back(&addr, token.as_deref(), tls_ca.as_deref(), &job).await {
-                    Ok(ready) => Event::Ready { worker, ready: Box::new(ready) },
-                    Err(reason) => Event::Refused { worker, reason },
-                };
+                let event =
+                    match crate::fleet::rejoin::call_back(&addr, token.as_deref(), tls_ca.as_deref(), &job).await {
+                        Ok(ready) => Event::Ready { worker, ready: Box::new(ready) },
+                        Err(reason) => Event::Refused { worker, reason },
+                    };
                 let _ = tx.send(event);
             });
             m.rejoining = Some(task.abort_handle());
@@ -689,7 +695,7 @@ impl<'a> Farm<'a> {
         let workers = self.reports();
         let stop = match result {
             Ok(()) => {
-                let bounded = self.rounds.as_ref().map(crate::bounded::Rounds::report);
+                let bounded = self.rounds.as_ref().map(crate::farm::bounded::Rounds::report);
                 let pixels = match &bounded {
                     Some(b) => self.image.image_of(b.passes),
                     None => self.image.image(),
@@ -799,10 +805,10 @@ impl<'a> Farm<'a> {
     }
 
     /// Publishes the render's state to the live page, if there is one: at most every
-    /// [`crate::live::PUBLISH_EVERY`] unless `force`, with the image when a unit was finished since and someone
+    /// [`crate::out::live::PUBLISH_EVERY`] unless `force`, with the image when a unit was finished since and someone
     /// looks (or it is the final state).
     fn publish(&mut self, force: bool) {
-        use crate::live::{self, LiveStatus, LiveWorker, Preview};
+        use crate::out::live::{self, LiveStatus, LiveWorker, Preview};
         let Some(board) = self.live.as_deref().filter(|b| b.due(force)) else { return };
         let (done, total) = self.sched.progress();
         let (job, passes_done) = (self.job, self.done_rows.iter().map(|(a, b)| b - a).sum::<u32>());

@@ -1,10 +1,14 @@
-//! The command line's arguments: one struct per command, the farm flags they share, and the parsers of sizes
-//! and regions. [`crate::commands`] runs them.
+//! The command line: its arguments (here: one struct per command, the farm flags they share, and the parsers of
+//! sizes and regions), the flags that override scene settings ([`overrides`]) and the commands that run them
+//! ([`commands`]).
+
+pub mod commands;
+pub mod overrides;
 
 use crate::fleet;
-use crate::overrides::Setting;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use overrides::Setting;
 use photon_core::method::Method;
 use photon_core::metrics::Region;
 use std::path::PathBuf;
@@ -80,12 +84,12 @@ pub(crate) struct RenderArgs {
     /// Render in rounds until this much time has passed since the command started (e.g. `90s`, `1.5m`): passes
     /// for `progressive`, `vcm`, `bdpt` and `lt`, samples per pixel for the other methods, replacing `--spp` and
     /// `--passes`. The summary says how many were done; the image equals a render of that many.
-    #[arg(long, value_name = "TIME", value_parser = crate::bounded::parse_time)]
+    #[arg(long, value_name = "TIME", value_parser = crate::farm::bounded::parse_time)]
     pub(crate) time: Option<std::time::Duration>,
     /// Render in rounds until the estimated relative MSE (no reference needed) is at most this, e.g. `0.01`:
     /// every method but `photon-map` and `final-gather` (the estimate of `progressive` and `vcm` includes the
     /// gather radius's bias). With `--time`, whichever comes first.
-    #[arg(long, value_name = "RELMSE", value_parser = crate::bounded::parse_target_error)]
+    #[arg(long, value_name = "RELMSE", value_parser = crate::farm::bounded::parse_target_error)]
     pub(crate) target_error: Option<f64>,
     /// Rows per strip (default: about 16 strips per worker, at most 64 rows); for `progressive`, `vcm`, `bdpt`
     /// and `lt`, passes per whole-image block (default: about 16 blocks per worker).
@@ -105,13 +109,13 @@ pub(crate) struct RenderArgs {
     /// to each), `peers` (traced here once, uploaded to one worker at a time and passed on among the workers),
     /// `trace` (each worker traces them itself; the same bits), or `auto` (a cost model measured on this machine
     /// chooses per job; the summary line says which and what it modelled).
-    #[arg(long, value_enum, default_value_t = crate::delivery::MapDelivery::Auto)]
-    pub(crate) photon_maps: crate::delivery::MapDelivery,
+    #[arg(long, value_enum, default_value_t = crate::job::delivery::MapDelivery::Auto)]
+    pub(crate) photon_maps: crate::job::delivery::MapDelivery,
     /// Serve a live web page of the render at ADDR while it runs (default 127.0.0.1:8080): the image as it fills
     /// in, the strips done and in flight, the workers, progress, the time left and the photon statistics;
     /// `/api/status` has the same as JSON. With a farm token, the page and the JSON want it
     /// (`Authorization: Bearer`).
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::live::DEFAULT_ADDR,
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::out::live::DEFAULT_ADDR,
           value_parser = parse_serve_addr)]
     pub(crate) serve: Option<std::net::SocketAddr>,
     /// Keep the live page up after the render, showing the final state, until Ctrl-C.

@@ -3,8 +3,8 @@
 //! that cannot be reached is lost; one that answered with a failure gets a [`StripFailure`] whose flags say
 //! whether to retry and whether it counts against the worker.
 
+use crate::farm::scheduler::StripFailure;
 use crate::job::Job;
-use crate::scheduler::StripFailure;
 use photon_core::render::sums::{BlockSumsError, check_sums};
 use photon_proto::pb::render_client::RenderClient;
 use photon_proto::pb::{self, strip_event::Event as WireEvent};
@@ -197,7 +197,7 @@ pub struct Ready {
     pub client: Client,
     /// Its hello.
     pub hello: pb::HelloReply,
-    /// Blob bytes it received, from the coordinator and from other workers ([`crate::swarm`]).
+    /// Blob bytes it received, from the coordinator and from other workers ([`crate::fleet::swarm`]).
     pub delivered: Delivered,
     /// Seconds from the start of the session until it was ready.
     pub ship_s: f64,
@@ -250,7 +250,7 @@ impl std::ops::AddAssign for Delivered {
 }
 
 /// Says hello and gets the worker the blobs it lacks: uploaded from here, or, for the big blobs of a job with a
-/// [`Swarm`](crate::swarm::Swarm), fetched from another worker when one is free to send. `uri` is the worker's
+/// [`Swarm`](crate::fleet::swarm::Swarm), fetched from another worker when one is free to send. `uri` is the worker's
 /// address as the other workers reach it. Returns its reply and the bytes it received.
 pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb::HelloReply, Delivered), SessionError> {
     let hello = hello(client).await?;
@@ -270,7 +270,7 @@ pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb:
             return Err(SessionError::BlobTooLarge { size: blob.len() as u64, limit: hello.max_blob_bytes });
         }
         match &job.swarm {
-            Some(swarm) if blob.len() >= crate::swarm::MIN_PEER_BYTES => {
+            Some(swarm) if blob.len() >= crate::fleet::swarm::MIN_PEER_BYTES => {
                 delivered += through_swarm(client, swarm, &id, blob, uri).await?;
             }
             _ => delivered.shipped += put_blob(client, &id, blob.clone()).await?,
@@ -283,12 +283,12 @@ pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb:
 /// fetch the peer failed (`ABORTED`) tries the next source; one the receiver failed gets the blob from here.
 async fn through_swarm(
     client: &mut Client,
-    swarm: &crate::swarm::Swarm,
+    swarm: &crate::fleet::swarm::Swarm,
     id: &str,
     blob: &Arc<Vec<u8>>,
     uri: &str,
 ) -> Result<Delivered, SessionError> {
-    use crate::swarm::{Outcome, Source};
+    use crate::fleet::swarm::{Outcome, Source};
     let mut peers = true;
     loop {
         let lease = swarm.lease(id, uri, peers).await;

@@ -1,7 +1,14 @@
-//! Where the workers come from: a host list file, an address list, worker processes started on loopback, or
-//! one worker server inside this process (the default).
+//! The workers of a render. Here: where they come from (a host list file, an address list, worker processes
+//! started on loopback, or one worker server inside this process, the default). Below: one worker's side of the
+//! wire ([`session`]: connect, hello, blob upload, strip fetch), blobs passed among the workers ([`swarm`]),
+//! lost workers called back ([`rejoin`]), and the signals that stop a render ([`interrupt`]).
 
-use crate::session::WorkerAddr;
+pub mod interrupt;
+pub mod rejoin;
+pub mod session;
+pub mod swarm;
+
+use session::WorkerAddr;
 use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};

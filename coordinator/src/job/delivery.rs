@@ -1,6 +1,6 @@
 //! How each worker gets a job's photon maps: **shipped** from the coordinator (which traces them once, builds
 //! them and uploads the blob to every worker), passed among **peers** (the coordinator uploads the blob to one
-//! worker at a time and every worker holding it sends it on to another, [`crate::swarm`]), or **traced** by
+//! worker at a time and every worker holding it sends it on to another, [`crate::fleet::swarm`]), or **traced** by
 //! every worker itself from the deterministic photon streams (only the scene blob travels). All give the same
 //! maps, bit for bit, so the image does not depend on the choice; only the time does.
 //!
@@ -22,7 +22,7 @@
 //! workers (300 MB/s, measured in docs/RESULTS.md "Shipping photon maps") and 1 Gbit/s (125 MB/s) for
 //! remote ones.
 
-use crate::session::{self, WorkerAddr};
+use crate::fleet::session::{self, WorkerAddr};
 use photon_core::codec;
 use photon_core::photon::{PhotonMap, PhotonMaps};
 use photon_core::prepare::Prepared;
