@@ -179,7 +179,7 @@ async fn model_farm(
             (vec![(threads / n.max(&1)).max(1) as u32; *n], delivery::LOOPBACK_BYTES_PER_S)
         }
         fleet::FleetSpec::Remote(_) => {
-            let threads = delivery::probe_threads(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
+            let threads = fleet::probe_threads(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
             (threads, delivery::LINK_BYTES_PER_S)
         }
     };

@@ -35,7 +35,7 @@ use crate::fleet::session::{
     self, Client, Delivered, Ready, SessionError, StripError, StripResult, WorkerAddr, fetch_strip,
 };
 use crate::job::{Job, Partial};
-use crate::out::report::{Warning, WorkerReport, progress_bar};
+use crate::out::report::{Outcome, Warning, WorkerReport, progress_bar};
 use photon_core::render::sums::SumAccumulator;
 use photon_proto::pb;
 use scheduler::{
@@ -92,28 +92,6 @@ impl Default for Options {
             live: None,
         }
     }
-}
-
-/// A finished render.
-#[derive(Clone, Debug)]
-pub struct Outcome {
-    /// Linear RGB, row-major.
-    pub pixels: Vec<f32>,
-    /// Rays traced (by accepted strips).
-    pub rays: u64,
-    /// Photon paths traced by accepted strips (progressive passes; the other methods trace theirs when the job
-    /// is prepared).
-    pub photon_paths: u64,
-    /// One line per worker.
-    pub workers: Vec<WorkerReport>,
-    /// Seconds from the start until the first worker was ready (connection, hello and shipping).
-    pub ship_s: f64,
-    /// Seconds from the first worker ready to the last strip.
-    pub render_s: f64,
-    /// Strips resumed from a partial file.
-    pub resumed: usize,
-    /// What a render bounded by time or error did: passes (samples) in the image, rounds, why it stopped.
-    pub bounded: Option<crate::farm::bounded::BoundedReport>,
 }
 
 /// Why a render stopped before the image was complete.

@@ -189,6 +189,32 @@ impl Fleet {
     }
 }
 
+/// The thread count of each worker that answers a hello within `patience` (the model's view of a remote farm;
+/// a worker that does not answer is left out, and the render reports it as usual).
+pub async fn probe_threads(
+    addrs: &[WorkerAddr],
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Vec<u32> {
+    let mut hellos = tokio::task::JoinSet::new();
+    for (i, a) in addrs.iter().enumerate() {
+        let (uri, token, tls_ca) = (a.uri.clone(), token.map(str::to_owned), tls_ca.map(<[u8]>::to_vec));
+        hellos.spawn(async move {
+            let hello = async {
+                let mut client = session::connect(&uri, token.as_deref(), tls_ca.as_deref(), Duration::ZERO).await?;
+                session::hello(&mut client).await
+            };
+            (i, tokio::time::timeout(patience, hello).await.ok().and_then(Result::ok))
+        });
+    }
+    let mut threads = vec![None; addrs.len()];
+    while let Some(Ok((i, hello))) = hellos.join_next().await {
+        threads[i] = hello.map(|h| h.threads);
+    }
+    threads.into_iter().flatten().collect()
+}
+
 /// A host list file:
 ///
 /// ```toml
