@@ -4,7 +4,7 @@
 use crate::cli::overrides::{self, Setting};
 use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
 use crate::farm::{self, FarmError};
-use crate::fleet;
+use crate::fleet::{self, session::Greeting};
 use crate::job::delivery::{self, MapDelivery};
 use crate::job::prepared_cache::PreparedCache;
 use crate::job::{Partial, partial_path, prepare_job};
@@ -78,11 +78,12 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
     // The model's view of the workers is needed only when it chooses (a forced mode ignores it).
-    let model_farm = if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
-        rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref()))
-    } else {
-        delivery::Farm::default()
-    };
+    let (model_farm, greetings) =
+        if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
+            rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref()))
+        } else {
+            (delivery::Farm::default(), Vec::new())
+        };
     let decide = |prep: &Prepared| delivery::choose(args.photon_maps, prep, &model_farm);
     let (mut job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
     if bound.is_some() {
@@ -107,6 +108,7 @@ fn render(args: RenderArgs) -> Result<()> {
         interrupt: Some(interrupts.clone()),
         bound: bound.clone(),
         live: live.as_ref().map(|(board, _)| board.clone()),
+        greetings,
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -162,14 +164,16 @@ fn render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The workers as the photon-map delivery model sees them: their threads (asked by a hello for remote ones),
-/// this machine's threads, and the link between them.
+/// The workers as the photon-map delivery model sees them: their threads, this machine's threads, and the link
+/// between them. Remote workers are greeted for their threads; the greetings are returned for the render's
+/// sessions, which then say no second hello.
 async fn model_farm(
     spec: &fleet::FleetSpec,
     fleet: &fleet::Fleet,
     token: Option<&str>,
     tls_ca: Option<&[u8]>,
-) -> delivery::Farm {
+) -> (delivery::Farm, Vec<Option<Greeting>>) {
+    let mut greetings = Vec::new();
     let here = rayon::current_num_threads() as u32;
     let (worker_threads, link_bytes_per_s) = match spec {
         fleet::FleetSpec::InProcess(threads) => {
@@ -179,13 +183,13 @@ async fn model_farm(
             (vec![(threads / n.max(&1)).max(1) as u32; *n], delivery::LOOPBACK_BYTES_PER_S)
         }
         fleet::FleetSpec::Remote(_) => {
-            let threads = fleet::probe_threads(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
-            (threads, delivery::LINK_BYTES_PER_S)
+            greetings = fleet::greet(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
+            (fleet::threads(&greetings), delivery::LINK_BYTES_PER_S)
         }
     };
     // Workers on this machine share its one link, whether started here or listed by a loopback address.
     let shared_link = !matches!(spec, fleet::FleetSpec::Remote(_)) || fleet.addrs.iter().all(|a| a.is_loopback());
-    delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }
+    (delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }, greetings)
 }
 
 /// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is

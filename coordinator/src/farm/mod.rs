@@ -38,7 +38,9 @@ mod tests;
 mod view;
 
 use crate::fleet::interrupt::{Interrupt, Interrupts, interrupted};
-use crate::fleet::session::{self, Client, Ready, SessionError, StripError, StripResult, WorkerAddr, fetch_strip};
+use crate::fleet::session::{
+    self, Client, Greeting, Ready, SessionError, StripError, StripResult, WorkerAddr, fetch_strip,
+};
 use crate::job::{Job, Partial};
 use crate::out::live::Board;
 use crate::out::report::{Outcome, WorkerReport, progress_bar};
@@ -76,6 +78,10 @@ pub struct Options {
     pub bound: Option<crate::farm::bounded::Bound>,
     /// Where the render's state is published for the live page (`render --serve`), if anywhere.
     pub live: Option<std::sync::Arc<crate::out::live::Board>>,
+    /// The workers greeted earlier in this render ([`crate::fleet::greet`]), by their index in the workers
+    /// rendered on: their sessions go on from the greeting, without a second hello. The others (all of them
+    /// when this is empty) are greeted by their sessions.
+    pub greetings: Vec<Option<Greeting>>,
 }
 
 /// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
@@ -94,6 +100,7 @@ impl Default for Options {
             rejoin_patience: REJOIN_PATIENCE,
             bound: None,
             live: None,
+            greetings: Vec::new(),
         }
     }
 }
@@ -176,7 +183,8 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
     farm.finish(result, t0.elapsed())
 }
 
-/// One task per worker: connect, say hello, ship blobs, and report the worker ready or refused.
+/// One task per worker: connect and say hello (unless it was greeted already), ship blobs, and report the worker
+/// ready or refused.
 fn start_sessions(
     job: &Job,
     workers: &[WorkerAddr],
@@ -186,10 +194,14 @@ fn start_sessions(
     let mut sessions = Vec::new();
     for (i, addr) in workers.iter().enumerate() {
         let (tx, job, addr, token) = (tx.clone(), job.clone(), addr.clone(), options.token.clone());
-        let tls_ca = options.tls_ca.clone();
+        let (tls_ca, greeting) = (options.tls_ca.clone(), options.greetings.get(i).cloned().flatten());
         let worker = WorkerId(i as u32);
         sessions.push(tokio::spawn(async move {
-            let event = match session::open(&addr, token.as_deref(), tls_ca.as_deref(), &job).await {
+            let opened = match greeting {
+                Some(greeting) => session::open_greeted(greeting, &addr, &job).await,
+                None => session::open(&addr, token.as_deref(), tls_ca.as_deref(), &job).await,
+            };
+            let event = match opened {
                 Ok(ready) => Event::Ready { worker, ready: Box::new(ready) },
                 Err(reason) => Event::Refused { worker, reason },
             };

@@ -222,9 +222,55 @@ pub async fn open_with_patience(
     patience: Duration,
 ) -> Result<Ready, SessionError> {
     let started = Instant::now();
-    let mut client = connect(&addr.uri, token, tls_ca, patience).await?;
-    let (hello, delivered) = introduce(&mut client, job, &addr.uri).await?;
+    let greeting = greet(&addr.uri, token, tls_ca, patience).await?;
+    supply_greeted(greeting, addr, job, started).await
+}
+
+/// The session of a worker greeted earlier in this render ([`crate::fleet::greet`]): ships the blobs it lacks
+/// over the greeting's connection, without a second hello.
+pub async fn open_greeted(greeting: Greeting, addr: &WorkerAddr, job: &Job) -> Result<Ready, SessionError> {
+    supply_greeted(greeting, addr, job, Instant::now()).await
+}
+
+/// Gets a greeted worker the blobs of `job`; the session counts as started at `started`.
+async fn supply_greeted(
+    greeting: Greeting,
+    addr: &WorkerAddr,
+    job: &Job,
+    started: Instant,
+) -> Result<Ready, SessionError> {
+    let Greeting { mut client, hello } = greeting;
+    let delivered = supply(&mut client, &hello, job, &addr.uri).await?;
     Ok(Ready { client, hello, delivered, ship_s: started.elapsed().as_secs_f64() })
+}
+
+/// A worker that answered hello: its client, on the same connection, and its reply. The model of the farm greets
+/// remote workers before the job is prepared (it needs their threads); the render's sessions go on from these
+/// greetings, so that each worker hears one hello per render.
+#[derive(Clone)]
+pub struct Greeting {
+    /// Its client.
+    pub client: Client,
+    /// Its answer.
+    pub hello: pb::HelloReply,
+}
+
+impl std::fmt::Debug for Greeting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Greeting").field("hello", &self.hello).finish_non_exhaustive()
+    }
+}
+
+/// Connects to the worker at `uri` ([`connect`], retrying refused connections for `patience`) and says hello.
+pub async fn greet(
+    uri: &str,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Result<Greeting, SessionError> {
+    let mut client = connect(uri, token, tls_ca, patience).await?;
+    let hello = hello(&mut client).await?;
+    Ok(Greeting { client, hello })
 }
 
 /// Whether a hello that failed with `code` got no answer from a worker (the connection died: a worker going
@@ -249,11 +295,22 @@ impl std::ops::AddAssign for Delivered {
     }
 }
 
-/// Says hello and gets the worker the blobs it lacks: uploaded from here, or, for the big blobs of a job with a
-/// [`Swarm`](crate::fleet::swarm::Swarm), fetched from another worker when one is free to send. `uri` is the worker's
-/// address as the other workers reach it. Returns its reply and the bytes it received.
+/// Says hello and gets the worker the blobs it lacks ([`supply`]). Returns its reply and the bytes it received.
 pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb::HelloReply, Delivered), SessionError> {
     let hello = hello(client).await?;
+    let delivered = supply(client, &hello, job, uri).await?;
+    Ok((hello, delivered))
+}
+
+/// Gets a worker that answered `hello` the blobs it lacks: uploaded from here, or, for the big blobs of a job
+/// with a [`Swarm`](crate::fleet::swarm::Swarm), fetched from another worker when one is free to send. `uri` is
+/// the worker's address as the other workers reach it. Returns the bytes it received.
+pub async fn supply(
+    client: &mut Client,
+    hello: &pb::HelloReply,
+    job: &Job,
+    uri: &str,
+) -> Result<Delivered, SessionError> {
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
     let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
         .await
@@ -276,7 +333,7 @@ pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb:
             _ => delivered.shipped += put_blob(client, &id, blob.clone()).await?,
         }
     }
-    Ok((hello, delivered))
+    Ok(delivered)
 }
 
 /// Gets blob `id` to the worker at `uri` from the first free source: a peer holding it or the coordinator. A
