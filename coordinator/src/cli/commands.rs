@@ -4,11 +4,12 @@
 use crate::cli::overrides::{self, Setting};
 use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
 use crate::farm::{self, FarmError};
+use crate::fleet::interrupt::Interrupts;
 use crate::fleet::{self, session::Greeting};
 use crate::job::delivery::{self, MapDelivery};
 use crate::job::prepared_cache::PreparedCache;
 use crate::job::{Partial, partial_path, prepare_job};
-use crate::out::live::{self, Board};
+use crate::out::live::{self, Board, LiveServer};
 use crate::out::report::{Summary, print_workers};
 use crate::sweep::{self, sig};
 use anyhow::{Context, Result, bail};
@@ -51,31 +52,13 @@ fn render(args: RenderArgs) -> Result<()> {
     let bound = bound(&args, &mut scene, t0)?;
     fits_in_memory(&scene, args.rows_per_strip, bound.is_some())?;
     let resume = args.resume.as_deref().map(Partial::read).transpose()?;
-    let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
-        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
-        _ => None,
-    };
+    let cache = open_cache(&args)?;
     // The runtime outlives the render, so that its signal watch still ends the process at a second signal while
     // the partial file is written. The workers start (and remote ones are asked their threads) before
     // preparing: how they get the photon maps depends on them.
     let rt = runtime()?;
     // The page is up before the workers start, so that an address in use fails at once.
-    let live = match args.serve {
-        Some(addr) => {
-            let board = Arc::new(Board::new(scene.render.exposure));
-            let server = rt.block_on(live::serve(addr, board.clone(), token.as_deref()))?;
-            eprintln!("live page: http://{}/", server.addr());
-            if !server.addr().ip().is_loopback() && token.is_none() {
-                eprintln!(
-                    "warning: the live page is served on {} without a farm token: anyone who can reach it sees the \
-                     image and the workers (give --token-file to require one)",
-                    server.addr()
-                );
-            }
-            Some((board, server))
-        }
-        None => None,
-    };
+    let live = args.serve.map(|addr| serve_live(&rt, addr, scene.render.exposure, token.as_deref())).transpose()?;
     let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
     // The model's view of the workers is needed only when it chooses (a forced mode ignores it).
     let (model_farm, greetings) =
@@ -127,15 +110,8 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
-    let t_assemble = Instant::now();
     let image = Image { width, height, pixels: std::mem::take(&mut outcome.pixels) };
-    image.write(&args.output, settings.exposure)?;
-    if let Some(p) = &args.resume
-        && *p == partial_path(&args.output)
-    {
-        let _ = std::fs::remove_file(p);
-    }
-    let assemble_s = t_assemble.elapsed().as_secs_f64();
+    let assemble_s = write_output(&args, &image, settings.exposure)?;
     if !in_process {
         print_workers(&outcome.workers);
     }
@@ -150,18 +126,60 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     println!("{}", summary.line(&outcome));
     if let Some((_, server)) = live {
-        rt.block_on(async {
-            if args.serve_after {
-                eprintln!(
-                    "live page: the render is over; serving its final state at http://{}/ until Ctrl-C",
-                    server.addr()
-                );
-                crate::fleet::interrupt::interrupted(Some(&mut interrupts)).await;
-            }
-            server.stop().await;
-        });
+        rt.block_on(stop_live(server, args.serve_after, &mut interrupts));
     }
     Ok(())
+}
+
+/// The prepared-blob cache of `render`, unless `--no-cache` or no folder for it.
+fn open_cache(args: &RenderArgs) -> Result<Option<PreparedCache>> {
+    Ok(match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
+        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
+        _ => None,
+    })
+}
+
+/// Writes the finished image, and removes the partial file it was resumed from when that is the output's; the
+/// seconds it took.
+fn write_output(args: &RenderArgs, image: &Image, exposure: f32) -> Result<f64> {
+    let t = Instant::now();
+    image.write(&args.output, exposure)?;
+    if let Some(p) = &args.resume
+        && *p == partial_path(&args.output)
+    {
+        let _ = std::fs::remove_file(p);
+    }
+    Ok(t.elapsed().as_secs_f64())
+}
+
+/// Serves the live page on `addr` (`render --serve`), warning when anyone who reaches it may look.
+fn serve_live(
+    rt: &tokio::runtime::Runtime,
+    addr: std::net::SocketAddr,
+    exposure: f32,
+    token: Option<&str>,
+) -> Result<(Arc<Board>, LiveServer)> {
+    let board = Arc::new(Board::new(exposure));
+    let server = rt.block_on(live::serve(addr, board.clone(), token))?;
+    eprintln!("live page: http://{}/", server.addr());
+    if !server.addr().ip().is_loopback() && token.is_none() {
+        eprintln!(
+            "warning: the live page is served on {} without a farm token: anyone who can reach it sees the \
+             image and the workers (give --token-file to require one)",
+            server.addr()
+        );
+    }
+    Ok((board, server))
+}
+
+/// Stops the live page once the render is over; with `--serve-after`, first serves its final state until a
+/// signal.
+async fn stop_live(server: LiveServer, serve_after: bool, interrupts: &mut Interrupts) {
+    if serve_after {
+        eprintln!("live page: the render is over; serving its final state at http://{}/ until Ctrl-C", server.addr());
+        crate::fleet::interrupt::interrupted(Some(interrupts)).await;
+    }
+    server.stop().await;
 }
 
 /// The workers as the photon-map delivery model sees them: their threads, this machine's threads, and the link
