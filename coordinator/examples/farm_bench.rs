@@ -20,12 +20,12 @@
 
 #![allow(clippy::expect_used)] // a benchmark: a failure should stop it loudly
 
+use photon_coordinator::farm::scheduler::{Policy, Scheduler, WorkerId};
 use photon_coordinator::farm::{self, Options};
+use photon_coordinator::fleet::session;
 use photon_coordinator::fleet::{InProcess, LocalWorkers};
 use photon_coordinator::job::Job;
 use photon_coordinator::model::{Network, SimJob, SimWorker, simulate};
-use photon_coordinator::scheduler::{Policy, Scheduler, WorkerId};
-use photon_coordinator::session;
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::scene::Scene;
@@ -382,12 +382,12 @@ fn model() {
             (height, per_row_spp * spp, 0.0, 24.0 * f64::from(width), format!("{spp} spp"))
         };
         let cuts: Vec<u32> = if integrator.renders_passes() {
-            let default = photon_coordinator::scheduler::passes_per_block_for(units, lab.len() as u32);
+            let default = photon_coordinator::farm::scheduler::passes_per_block_for(units, lab.len() as u32);
             // The default, and other cuts for comparison (more blocks: a shorter tail, more bytes to send back).
             let per_worker = |k: u32| units.div_ceil(lab.len() as u32 * k);
             vec![default, per_worker(4), per_worker(8), per_worker(32)]
         } else {
-            vec![photon_coordinator::scheduler::rows_per_strip_for(height, lab.len() as u32)]
+            vec![photon_coordinator::farm::scheduler::rows_per_strip_for(height, lab.len() as u32)]
         };
         let runs = cuts.iter().flat_map(|&c| deliveries.iter().map(move |&d| (c, d)));
         for (per_strip, (delivery, blob_bytes, prepare_s, load_core_s, relay)) in runs {

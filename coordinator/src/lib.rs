@@ -1,23 +1,26 @@
 //! `photon-coordinator` as a library: the command line's commands, and the parts worth testing on their own.
 //!
-//! [`scheduler`] decides which worker renders which strip of rows. It is a pure state machine (no clock, no
-//! network, no async): the caller feeds it events with the time they happened and acts on what it returns, so
-//! every policy decision can be replayed in a unit test. [`farm`] is that caller: its event loop owns the
-//! scheduler, validates strips and assembles the image. [`session`] is one worker's side of the wire: connect,
-//! hello, blob upload in chunks, strip fetch, and the classification of a failed strip. [`job`] is what a render
-//! ships (the blobs and frame of a prepared scene, prepared through the cache) and what an interrupted one
-//! leaves for `--resume`. [`delivery`] decides whether a job's photon maps are shipped to the workers, passed
-//! among them ([`swarm`]) or traced by each of them. [`fleet`] finds the workers: a host list, an address list,
-//! worker processes on loopback, or a worker server inside this process (the default, so a render on one machine
-//! takes the same path as one on many). [`prepared_cache`] keeps prepared blobs on disk for the next render of
-//! an unchanged scene. [`rejoin`] calls lost workers back with backoff, and [`interrupt`] turns SIGINT and
-//! SIGTERM into a render that stops keeping what is finished. [`report`] is what the user reads: warnings during
-//! the render, the worker table and the summary line; [`live`] serves a web page of the render while it runs.
-//! [`sweep`] charts error against time. [`bounded`] sizes the rounds of a render bounded by time or estimated
-//! error and estimates that error without a reference. [`model`] is a discrete-event model of a lab farm that
-//! drives the real scheduler with a simulated clock and network.
-//! [`overrides`] turns the flags that override scene settings, and the sweep's budgets, into the `KEY=VALUE`
-//! pairs of `--set`. [`cli`] holds the command line's arguments and [`commands`] runs them.
+//! The folders follow a render from the command line to the image:
+//!
+//! - [`cli`]: the arguments, the flags that override scene settings as `--set` pairs ([`cli::overrides`]), and
+//!   the commands that run them ([`cli::commands`]).
+//! - [`job`]: what a render ships, the blobs and frame of a prepared scene, and what an interrupted render
+//!   leaves for `--resume`; whether the photon maps are shipped, passed among the workers or traced by each
+//!   ([`job::delivery`]); the disk cache of prepared blobs ([`job::prepared_cache`]).
+//! - [`fleet`]: the workers. Where they come from: a host list, an address list, worker processes on loopback,
+//!   or a worker server inside this process (the default, so a render on one machine takes the same path as one
+//!   on many). One worker's side of the wire, with the classification of a failed strip ([`fleet::session`]);
+//!   blobs passed among them ([`fleet::swarm`]); lost workers called back with backoff ([`fleet::rejoin`]);
+//!   SIGINT and SIGTERM turned into a render that stops keeping what is finished ([`fleet::interrupt`]).
+//! - [`farm`]: the render. Its event loop validates strips and assembles the image; the scheduler decides which
+//!   worker renders which strip ([`farm::scheduler`], a pure state machine with no clock, network or async, so
+//!   every policy decision can be replayed in a unit test); a render bounded by time or estimated error runs in
+//!   rounds and estimates that error without a reference ([`farm::bounded`]).
+//! - [`out`]: what the user reads: warnings during the render, the worker table and the summary line
+//!   ([`out::report`]), and a web page of the render while it runs ([`out::live`]).
+//!
+//! Two tools stand apart: [`sweep`] charts error against time, and [`model`] is a discrete-event model of a
+//! lab farm that drives the real scheduler with a simulated clock and network.
 //!
 //! The user's manual is the repository's `README.md`; `docs/ARCHITECTURE.md` the design, `docs/RESULTS.md` the
 //! measurements.
@@ -29,7 +32,7 @@
 //!
 //! ```
 //! use photon_coordinator::model::{Network, SimJob, SimWorker, simulate};
-//! use photon_coordinator::scheduler::Policy;
+//! use photon_coordinator::farm::scheduler::Policy;
 //!
 //! let job = SimJob {
 //!     units: 400,
@@ -52,21 +55,10 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
-pub mod bounded;
 pub mod cli;
-pub mod commands;
-pub mod delivery;
 pub mod farm;
 pub mod fleet;
-pub mod interrupt;
 pub mod job;
-pub mod live;
 pub mod model;
-pub mod overrides;
-pub mod prepared_cache;
-pub mod rejoin;
-pub mod report;
-pub mod scheduler;
-pub mod session;
-pub mod swarm;
+pub mod out;
 pub mod sweep;

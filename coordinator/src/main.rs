@@ -1,8 +1,8 @@
-//! `photon-coordinator`: the photon command line. The commands live in the library ([`photon_coordinator::commands`]).
+//! `photon-coordinator`: the photon command line. The commands live in the library ([`photon_coordinator::cli::commands`]).
 #![forbid(unsafe_code)]
 
 use clap::Parser;
-use photon_coordinator::{cli::Cli, commands};
+use photon_coordinator::cli::{Cli, commands};
 
 fn main() {
     tracing_subscriber::fmt()

@@ -5,7 +5,7 @@
 //! - the coordinator prepares the job (serially, [`SimJob::prepare_s`]), then uploads the blobs to every
 //!   worker over its own link, one after another (first come, first served: the last worker waits for all the
 //!   others' uploads, as on a shared link), or, with [`SimJob::relay`], to one worker at a time while every
-//!   worker holding them sends them on to one more ([`crate::swarm`]); a worker decodes them
+//!   worker holding them sends them on to one more ([`crate::fleet::swarm`]); a worker decodes them
 //!   ([`SimJob::load_core_s`]) and is ready;
 //! - a worker renders one unit at a time on all its cores, at `cores × core_speed × thread_efficiency`
 //!   reference cores, and holds up to the policy's `max_in_flight` units;
@@ -18,7 +18,7 @@
 //! What is not: request latency beyond one round trip per unit, memory, and the variance of unit costs (every
 //! unit of a job costs the same per row or pass).
 
-use crate::scheduler::{Completion, Policy, Scheduler, StripFailure, StripId, WorkerId};
+use crate::farm::scheduler::{Completion, Policy, Scheduler, StripFailure, StripId, WorkerId};
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, VecDeque};
 use std::time::Duration;

@@ -2,12 +2,12 @@
 //! reference, and summarise the curves of relative MSE against wall time.
 //!
 //! The pieces here are the ones worth testing without a renderer: how a budget multiplier becomes a method's
-//! setting ([`budget`], as `--set` pairs through [`crate::overrides`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
+//! setting ([`budget`], as `--set` pairs through [`crate::cli::overrides`]), how a reference method is chosen ([`choose_reference`]), log-log interpolation
 //! for the equal-time and equal-error tables ([`error_at`], [`time_to`], [`summaries`]), the CSV, the chart
 //! ([`draw_charts`]), each method's image and error map ([`write_images`]) and the HTML page that shows them all
 //! ([`Report`]). Renders go through the workers, as `render`'s do ([`render_timed`]).
 
-use crate::overrides::Setting;
+use crate::cli::overrides::Setting;
 use anyhow::{Context, Result};
 use photon_core::image_io::Image;
 use photon_core::light::Light;
@@ -111,7 +111,7 @@ pub struct Timed {
     pub prepare_s: f64,
     /// Seconds to render the pixels.
     pub render_s: f64,
-    /// The relative MSE the render estimated of itself without a reference ([`crate::bounded`]): every method
+    /// The relative MSE the render estimated of itself without a reference ([`crate::farm::bounded`]): every method
     /// but `photon-map` and `final-gather`.
     pub estimated_rel_mse: Option<f64>,
 }
@@ -121,11 +121,11 @@ pub struct Timed {
 /// includes shipping the blobs (workers that already hold them are sent nothing).
 ///
 /// Every method but `photon-map` and `final-gather` renders its samples (passes) in rounds of whole-image blocks
-/// that estimate their own error ([`crate::bounded`]); the image is the same, bit for bit, as in strips.
+/// that estimate their own error ([`crate::farm::bounded`]); the image is the same, bit for bit, as in strips.
 pub async fn render_timed(
     scene: &Scene,
     scene_path: &Path,
-    addrs: &[crate::session::WorkerAddr],
+    addrs: &[crate::fleet::session::WorkerAddr],
     mut options: crate::farm::Options,
 ) -> Result<Timed> {
     let t0 = Instant::now();
@@ -142,8 +142,13 @@ pub async fn render_timed(
     if let Some((passes, bias_alpha)) = estimated {
         job.passes = Some(passes.max(1));
         let passes = Some(passes.max(1));
-        options.bound =
-            Some(crate::bounded::Bound { deadline: None, target_error: None, bias_alpha, passes, estimate: true });
+        options.bound = Some(crate::farm::bounded::Bound {
+            deadline: None,
+            target_error: None,
+            bias_alpha,
+            passes,
+            estimate: true,
+        });
     }
     drop(prep);
     let prepare_s = t0.elapsed().as_secs_f64();
@@ -152,7 +157,7 @@ pub async fn render_timed(
     let render_s = t1.elapsed().as_secs_f64();
     // A render in rounds that stopped short (no worker left, a signal) must not pass for its budget.
     if let (Some(b), Some((passes, _))) = (&outcome.bounded, estimated)
-        && (b.reason != crate::bounded::StopReason::Cap || b.passes != passes.max(1))
+        && (b.reason != crate::farm::bounded::StopReason::Cap || b.passes != passes.max(1))
     {
         anyhow::bail!("the render stopped {} after {} of its {} passes (samples)", b.reason, b.passes, passes.max(1));
     }
@@ -739,7 +744,7 @@ mod tests {
                     [[lights]]\ntype = \"point\"\nposition = [0.0, 2.0, 0.0]\npower = [10.0, 10.0, 10.0]\n";
         std::fs::write(dir.join("s.toml"), text).unwrap();
         let (settings, budget) = super::budget(method, b).unwrap();
-        let scene = Scene::load_with(&dir.join("s.toml"), &crate::overrides::pairs(&[], &settings)).unwrap();
+        let scene = Scene::load_with(&dir.join("s.toml"), &crate::cli::overrides::pairs(&[], &settings)).unwrap();
         (scene.render, budget)
     }
 

@@ -3,8 +3,8 @@
 //! that cannot be reached is lost; one that answered with a failure gets a [`StripFailure`] whose flags say
 //! whether to retry and whether it counts against the worker.
 
+use crate::farm::scheduler::StripFailure;
 use crate::job::Job;
-use crate::scheduler::StripFailure;
 use photon_core::render::sums::{BlockSumsError, check_sums};
 use photon_proto::pb::render_client::RenderClient;
 use photon_proto::pb::{self, strip_event::Event as WireEvent};
@@ -197,7 +197,7 @@ pub struct Ready {
     pub client: Client,
     /// Its hello.
     pub hello: pb::HelloReply,
-    /// Blob bytes it received, from the coordinator and from other workers ([`crate::swarm`]).
+    /// Blob bytes it received, from the coordinator and from other workers ([`crate::fleet::swarm`]).
     pub delivered: Delivered,
     /// Seconds from the start of the session until it was ready.
     pub ship_s: f64,
@@ -222,9 +222,55 @@ pub async fn open_with_patience(
     patience: Duration,
 ) -> Result<Ready, SessionError> {
     let started = Instant::now();
-    let mut client = connect(&addr.uri, token, tls_ca, patience).await?;
-    let (hello, delivered) = introduce(&mut client, job, &addr.uri).await?;
+    let greeting = greet(&addr.uri, token, tls_ca, patience).await?;
+    supply_greeted(greeting, addr, job, started).await
+}
+
+/// The session of a worker greeted earlier in this render ([`crate::fleet::greet`]): ships the blobs it lacks
+/// over the greeting's connection, without a second hello.
+pub async fn open_greeted(greeting: Greeting, addr: &WorkerAddr, job: &Job) -> Result<Ready, SessionError> {
+    supply_greeted(greeting, addr, job, Instant::now()).await
+}
+
+/// Gets a greeted worker the blobs of `job`; the session counts as started at `started`.
+async fn supply_greeted(
+    greeting: Greeting,
+    addr: &WorkerAddr,
+    job: &Job,
+    started: Instant,
+) -> Result<Ready, SessionError> {
+    let Greeting { mut client, hello } = greeting;
+    let delivered = supply(&mut client, &hello, job, &addr.uri).await?;
     Ok(Ready { client, hello, delivered, ship_s: started.elapsed().as_secs_f64() })
+}
+
+/// A worker that answered hello: its client, on the same connection, and its reply. The model of the farm greets
+/// remote workers before the job is prepared (it needs their threads); the render's sessions go on from these
+/// greetings, so that each worker hears one hello per render.
+#[derive(Clone)]
+pub struct Greeting {
+    /// Its client.
+    pub client: Client,
+    /// Its answer.
+    pub hello: pb::HelloReply,
+}
+
+impl std::fmt::Debug for Greeting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Greeting").field("hello", &self.hello).finish_non_exhaustive()
+    }
+}
+
+/// Connects to the worker at `uri` ([`connect`], retrying refused connections for `patience`) and says hello.
+pub async fn greet(
+    uri: &str,
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Result<Greeting, SessionError> {
+    let mut client = connect(uri, token, tls_ca, patience).await?;
+    let hello = hello(&mut client).await?;
+    Ok(Greeting { client, hello })
 }
 
 /// Whether a hello that failed with `code` got no answer from a worker (the connection died: a worker going
@@ -249,11 +295,22 @@ impl std::ops::AddAssign for Delivered {
     }
 }
 
-/// Says hello and gets the worker the blobs it lacks: uploaded from here, or, for the big blobs of a job with a
-/// [`Swarm`](crate::swarm::Swarm), fetched from another worker when one is free to send. `uri` is the worker's
-/// address as the other workers reach it. Returns its reply and the bytes it received.
+/// Says hello and gets the worker the blobs it lacks ([`supply`]). Returns its reply and the bytes it received.
 pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb::HelloReply, Delivered), SessionError> {
     let hello = hello(client).await?;
+    let delivered = supply(client, &hello, job, uri).await?;
+    Ok((hello, delivered))
+}
+
+/// Gets a worker that answered `hello` the blobs it lacks: uploaded from here, or, for the big blobs of a job
+/// with a [`Swarm`](crate::fleet::swarm::Swarm), fetched from another worker when one is free to send. `uri` is
+/// the worker's address as the other workers reach it. Returns the bytes it received.
+pub async fn supply(
+    client: &mut Client,
+    hello: &pb::HelloReply,
+    job: &Job,
+    uri: &str,
+) -> Result<Delivered, SessionError> {
     let ids: Vec<String> = job.blobs.keys().cloned().collect();
     let missing = tokio::time::timeout(ANSWER_TIMEOUT, client.missing_blobs(pb::MissingBlobsRequest { ids }))
         .await
@@ -270,25 +327,25 @@ pub async fn introduce(client: &mut Client, job: &Job, uri: &str) -> Result<(pb:
             return Err(SessionError::BlobTooLarge { size: blob.len() as u64, limit: hello.max_blob_bytes });
         }
         match &job.swarm {
-            Some(swarm) if blob.len() >= crate::swarm::MIN_PEER_BYTES => {
+            Some(swarm) if blob.len() >= crate::fleet::swarm::MIN_PEER_BYTES => {
                 delivered += through_swarm(client, swarm, &id, blob, uri).await?;
             }
             _ => delivered.shipped += put_blob(client, &id, blob.clone()).await?,
         }
     }
-    Ok((hello, delivered))
+    Ok(delivered)
 }
 
 /// Gets blob `id` to the worker at `uri` from the first free source: a peer holding it or the coordinator. A
 /// fetch the peer failed (`ABORTED`) tries the next source; one the receiver failed gets the blob from here.
 async fn through_swarm(
     client: &mut Client,
-    swarm: &crate::swarm::Swarm,
+    swarm: &crate::fleet::swarm::Swarm,
     id: &str,
     blob: &Arc<Vec<u8>>,
     uri: &str,
 ) -> Result<Delivered, SessionError> {
-    use crate::swarm::{Outcome, Source};
+    use crate::fleet::swarm::{Outcome, Source};
     let mut peers = true;
     loop {
         let lease = swarm.lease(id, uri, peers).await;

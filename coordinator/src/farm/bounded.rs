@@ -499,28 +499,6 @@ pub fn round_range(start: u32, plan: RoundPlan) -> Range<u32> {
     start..start.saturating_add(plan.passes)
 }
 
-/// Parses a `--time` value: a number with an optional unit `ms`, `s` (the default), `m` or `h`, e.g. `90s`,
-/// `1.5m`, `500ms`.
-pub fn parse_time(s: &str) -> Result<Duration, String> {
-    let t = s.trim();
-    let (number, scale) = [("ms", 1e-3), ("s", 1.0), ("m", 60.0), ("h", 3600.0)]
-        .iter()
-        .find_map(|&(unit, scale)| t.strip_suffix(unit).map(|n| (n, scale)))
-        .unwrap_or((t, 1.0));
-    match number.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v * scale <= 1e7 => Ok(Duration::from_secs_f64(v * scale)),
-        _ => Err(format!("expected a positive time such as 90s, 1.5m or 500ms (at most 10⁷ s), found `{s}`")),
-    }
-}
-
-/// Parses a `--target-error` value: a relative MSE in (0, 1e6).
-pub fn parse_target_error(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v < 1e6 => Ok(v),
-        _ => Err(format!("expected a relative MSE greater than 0, e.g. 0.01, found `{s}`")),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -686,22 +664,5 @@ mod tests {
         assert_eq!(plan_round(&s).unwrap().passes, 100);
         s.estimate = Some(0.0099);
         assert_eq!(plan_round(&s), Err(StopReason::Error));
-    }
-
-    #[test]
-    fn time_values_parse_with_units_and_refuse_the_rest() {
-        assert_eq!(parse_time("90s"), Ok(Duration::from_secs(90)));
-        assert_eq!(parse_time("90"), Ok(Duration::from_secs(90)));
-        assert_eq!(parse_time("1.5m"), Ok(Duration::from_secs(90)));
-        assert_eq!(parse_time("500ms"), Ok(Duration::from_millis(500)));
-        assert_eq!(parse_time("2h"), Ok(Duration::from_secs(7200)));
-        for bad in ["", "0s", "-3s", "abc", "nan", "inf", "3 days"] {
-            let e = parse_time(bad).unwrap_err();
-            assert!(e.contains("expected a positive time"), "{bad}: {e}");
-        }
-        assert_eq!(parse_target_error("0.01"), Ok(0.01));
-        for bad in ["0", "-1", "nan", "x"] {
-            assert!(parse_target_error(bad).is_err(), "{bad}");
-        }
     }
 }

@@ -1,13 +1,18 @@
-//! The command line's arguments: one struct per command, the farm flags they share, and the parsers of sizes
-//! and regions. [`crate::commands`] runs them.
+//! The command line: its arguments (here: one struct per command, the farm flags they share, and the parsers of
+//! their values, with one error type, [`ValueError`]), the flags that override scene settings ([`overrides`])
+//! and the commands that run them ([`commands`]).
+
+pub mod commands;
+pub mod overrides;
 
 use crate::fleet;
-use crate::overrides::Setting;
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
+use overrides::Setting;
 use photon_core::method::Method;
 use photon_core::metrics::Region;
 use std::path::PathBuf;
+use std::time::Duration;
 
 /// A distributed photon-mapping renderer.
 #[derive(Parser, Debug)]
@@ -80,12 +85,12 @@ pub(crate) struct RenderArgs {
     /// Render in rounds until this much time has passed since the command started (e.g. `90s`, `1.5m`): passes
     /// for `progressive`, `vcm`, `bdpt` and `lt`, samples per pixel for the other methods, replacing `--spp` and
     /// `--passes`. The summary says how many were done; the image equals a render of that many.
-    #[arg(long, value_name = "TIME", value_parser = crate::bounded::parse_time)]
-    pub(crate) time: Option<std::time::Duration>,
+    #[arg(long, value_name = "TIME", value_parser = parse_time)]
+    pub(crate) time: Option<Duration>,
     /// Render in rounds until the estimated relative MSE (no reference needed) is at most this, e.g. `0.01`:
     /// every method but `photon-map` and `final-gather` (the estimate of `progressive` and `vcm` includes the
     /// gather radius's bias). With `--time`, whichever comes first.
-    #[arg(long, value_name = "RELMSE", value_parser = crate::bounded::parse_target_error)]
+    #[arg(long, value_name = "RELMSE", value_parser = parse_target_error)]
     pub(crate) target_error: Option<f64>,
     /// Rows per strip (default: about 16 strips per worker, at most 64 rows); for `progressive`, `vcm`, `bdpt`
     /// and `lt`, passes per whole-image block (default: about 16 blocks per worker).
@@ -105,13 +110,13 @@ pub(crate) struct RenderArgs {
     /// to each), `peers` (traced here once, uploaded to one worker at a time and passed on among the workers),
     /// `trace` (each worker traces them itself; the same bits), or `auto` (a cost model measured on this machine
     /// chooses per job; the summary line says which and what it modelled).
-    #[arg(long, value_enum, default_value_t = crate::delivery::MapDelivery::Auto)]
-    pub(crate) photon_maps: crate::delivery::MapDelivery,
+    #[arg(long, value_enum, default_value_t = crate::job::delivery::MapDelivery::Auto)]
+    pub(crate) photon_maps: crate::job::delivery::MapDelivery,
     /// Serve a live web page of the render at ADDR while it runs (default 127.0.0.1:8080): the image as it fills
     /// in, the strips done and in flight, the workers, progress, the time left and the photon statistics;
     /// `/api/status` has the same as JSON. With a farm token, the page and the JSON want it
     /// (`Authorization: Bearer`).
-    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::live::DEFAULT_ADDR,
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = crate::out::live::DEFAULT_ADDR,
           value_parser = parse_serve_addr)]
     pub(crate) serve: Option<std::net::SocketAddr>,
     /// Keep the live page up after the render, showing the final state, until Ctrl-C.
@@ -278,8 +283,8 @@ pub(crate) struct SweepArgs {
     pub(crate) farm: FarmArgs,
 }
 
-/// Why a value of `--region` or `--size` is not one.
-#[derive(Debug, thiserror::Error)]
+/// Why a value of `--region`, `--size`, `--serve`, `--time` or `--target-error` is not one.
+#[derive(Debug, PartialEq, Eq, thiserror::Error)]
 pub enum ValueError {
     /// Not four non-negative integers.
     #[error("expected X0,Y0,X1,Y1 (four non-negative integers, X1 and Y1 exclusive), found `{0}`")]
@@ -299,6 +304,12 @@ pub enum ValueError {
     /// Not an address to listen on.
     #[error("expected HOST:PORT to serve the live page on, e.g. 127.0.0.1:8080, found `{0}`")]
     ServeAddr(String),
+    /// Not a positive time, or one above 10⁷ s.
+    #[error("expected a positive time such as 90s, 1.5m or 500ms (at most 10⁷ s), found `{0}`")]
+    Time(String),
+    /// Not a relative MSE in (0, 10⁶).
+    #[error("expected a relative MSE greater than 0, e.g. 0.01, found `{0}`")]
+    TargetError(String),
 }
 
 /// A region `X0,Y0,X1,Y1` of `--region`.
@@ -332,4 +343,48 @@ pub fn parse_serve_addr(s: &str) -> Result<std::net::SocketAddr, ValueError> {
         return Ok(addr);
     }
     s.to_socket_addrs().ok().and_then(|mut a| a.next()).ok_or_else(|| ValueError::ServeAddr(s.to_owned()))
+}
+
+/// Parses a `--time` value: a number with an optional unit `ms`, `s` (the default), `m` or `h`, e.g. `90s`,
+/// `1.5m`, `500ms`.
+pub fn parse_time(s: &str) -> Result<Duration, ValueError> {
+    let t = s.trim();
+    let (number, scale) = [("ms", 1e-3), ("s", 1.0), ("m", 60.0), ("h", 3600.0)]
+        .iter()
+        .find_map(|&(unit, scale)| t.strip_suffix(unit).map(|n| (n, scale)))
+        .unwrap_or((t, 1.0));
+    match number.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v * scale <= 1e7 => Ok(Duration::from_secs_f64(v * scale)),
+        _ => Err(ValueError::Time(s.to_owned())),
+    }
+}
+
+/// Parses a `--target-error` value: a relative MSE in (0, 1e6).
+pub fn parse_target_error(s: &str) -> Result<f64, ValueError> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v < 1e6 => Ok(v),
+        _ => Err(ValueError::TargetError(s.to_owned())),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn time_values_parse_with_units_and_refuse_the_rest() {
+        assert_eq!(parse_time("90s"), Ok(Duration::from_secs(90)));
+        assert_eq!(parse_time("90"), Ok(Duration::from_secs(90)));
+        assert_eq!(parse_time("1.5m"), Ok(Duration::from_secs(90)));
+        assert_eq!(parse_time("500ms"), Ok(Duration::from_millis(500)));
+        assert_eq!(parse_time("2h"), Ok(Duration::from_secs(7200)));
+        for bad in ["", "0s", "-3s", "abc", "nan", "inf", "3 days"] {
+            let e = parse_time(bad).unwrap_err();
+            assert!(e.to_string().contains("expected a positive time"), "{bad}: {e}");
+        }
+        assert_eq!(parse_target_error("0.01"), Ok(0.01));
+        for bad in ["0", "-1", "nan", "x"] {
+            assert!(parse_target_error(bad).is_err(), "{bad}");
+        }
+    }
 }

@@ -1,13 +1,17 @@
 //! A render job and what survives an interrupted one: the blobs and frame of a prepared scene ([`Job`],
 //! built by [`prepare_job`], through the prepared-blob cache when there is one), and the strips finished so far
-//! ([`Partial`]), kept in a partial file beside the output for `--resume`.
+//! ([`Partial`]), kept in a partial file beside the output for `--resume`. Preparing one also decides how the
+//! workers get its photon maps ([`delivery`]) and keeps the prepared blobs on disk for the next render of an
+//! unchanged scene ([`prepared_cache`]).
 
-use crate::delivery::Decision;
-use crate::prepared_cache::PreparedCacheError;
-use crate::prepared_cache::{self, PreparedCache};
+pub mod delivery;
+pub mod prepared_cache;
+
+use delivery::Decision;
 use photon_core::codec::CodecError;
 use photon_core::prepare::Prepared;
 use photon_core::scene::{Scene, SceneError};
+use prepared_cache::{PreparedCache, PreparedCacheError};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -81,18 +85,18 @@ pub struct Job {
     /// Image height in pixels.
     pub height: u32,
     /// The method reads photon maps and the job carries none: every worker traces them itself from the
-    /// deterministic photon streams ([`crate::delivery`]).
+    /// deterministic photon streams ([`crate::job::delivery`]).
     pub trace_photons: bool,
     /// The pass count when the method renders in passes (progressive, vcm, bdpt, lt: see
     /// [`photon_core::method::Method::renders_passes`]): the farm then hands out whole-image pass
-    /// blocks ([`crate::scheduler::passes_per_block_for`]) instead of strips of rows.
+    /// blocks ([`crate::farm::scheduler::passes_per_block_for`]) instead of strips of rows.
     pub passes: Option<u32>,
     /// The units of the whole job ([`photon_core::scene::RenderSettings::units`]): what each strip of rows
     /// renders when the farm cuts rows.
     pub units: u32,
     /// The workers pass big blobs among themselves (`--photon-maps peers`) instead of each receiving them
     /// from the coordinator.
-    pub swarm: Option<Arc<crate::swarm::Swarm>>,
+    pub swarm: Option<Arc<crate::fleet::swarm::Swarm>>,
 }
 
 impl Job {
@@ -174,7 +178,7 @@ pub struct Partial {
 /// Prepares a scene into a job, through the prepared-blob cache when there is one: the scene blob (meshes in BVH
 /// leaf order, materials, lights) and the photons blob are each read from the cache or built and stored. For a method with
 /// photon maps, `delivery` decides from the prepared scene whether the maps are traced here and shipped or
-/// traced by the workers ([`crate::delivery`]); the job then carries no photons blob and the workers trace.
+/// traced by the workers ([`crate::job::delivery`]); the job then carries no photons blob and the workers trace.
 pub fn prepare_job(
     scene: &Scene,
     scene_path: &Path,

@@ -2,8 +2,8 @@
 //! ([`Backoff`]) until it answers, and rejoins after the same hello and build-id check as at the start, with the
 //! job's blobs shipped again where it lacks them (a restarted worker has an empty cache).
 
+use crate::fleet::session::{self, Ready, SessionError, WorkerAddr};
 use crate::job::Job;
-use crate::session::{self, Ready, SessionError, WorkerAddr};
 use std::time::Duration;
 
 /// The first wait before a lost worker is called again.

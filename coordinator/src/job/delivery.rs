@@ -1,6 +1,6 @@
 //! How each worker gets a job's photon maps: **shipped** from the coordinator (which traces them once, builds
 //! them and uploads the blob to every worker), passed among **peers** (the coordinator uploads the blob to one
-//! worker at a time and every worker holding it sends it on to another, [`crate::swarm`]), or **traced** by
+//! worker at a time and every worker holding it sends it on to another, [`crate::fleet::swarm`]), or **traced** by
 //! every worker itself from the deterministic photon streams (only the scene blob travels). All give the same
 //! maps, bit for bit, so the image does not depend on the choice; only the time does.
 //!
@@ -22,13 +22,12 @@
 //! workers (300 MB/s, measured in docs/RESULTS.md "Shipping photon maps") and 1 Gbit/s (125 MB/s) for
 //! remote ones.
 
-use crate::session::{self, WorkerAddr};
 use photon_core::codec;
 use photon_core::photon::{PhotonMap, PhotonMaps};
 use photon_core::prepare::Prepared;
 use photon_core::prepare::photons::{PhotonKind, trace_photons};
 use std::fmt;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// How workers get the photon maps (`--photon-maps`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -206,32 +205,6 @@ pub fn choose(requested: MapDelivery, prep: &Prepared, farm: &Farm) -> Decision 
     .reduce(|best, next| if next.0 < best.0 { next } else { best })
     .map_or(MapDelivery::Trace, |(_, mode)| mode);
     Decision { mode, forced: false, estimate: Some(estimate) }
-}
-
-/// The thread count of each worker that answers a hello within `patience` (the model's view of a remote farm;
-/// a worker that does not answer is left out, and the render reports it as usual).
-pub async fn probe_threads(
-    addrs: &[WorkerAddr],
-    token: Option<&str>,
-    tls_ca: Option<&[u8]>,
-    patience: Duration,
-) -> Vec<u32> {
-    let mut hellos = tokio::task::JoinSet::new();
-    for (i, a) in addrs.iter().enumerate() {
-        let (uri, token, tls_ca) = (a.uri.clone(), token.map(str::to_owned), tls_ca.map(<[u8]>::to_vec));
-        hellos.spawn(async move {
-            let hello = async {
-                let mut client = session::connect(&uri, token.as_deref(), tls_ca.as_deref(), Duration::ZERO).await?;
-                session::hello(&mut client).await
-            };
-            (i, tokio::time::timeout(patience, hello).await.ok().and_then(Result::ok))
-        });
-    }
-    let mut threads = vec![None; addrs.len()];
-    while let Some(Ok((i, hello))) = hellos.join_next().await {
-        threads[i] = hello.map(|h| h.threads);
-    }
-    threads.into_iter().flatten().collect()
 }
 
 impl fmt::Display for Decision {

@@ -1,9 +1,10 @@
-//! What a render tells the user at the end: one line per worker ([`WorkerReport`], printed by
-//! [`print_workers`]) and the summary line of `render` ([`Summary`]).
+//! What a render tells the user: the warnings printed while it runs ([`Warning`]), and at the end one line per
+//! worker ([`WorkerReport`], printed by [`print_workers`]) and the summary line of `render` ([`Summary`]) of
+//! the finished render ([`Outcome`]).
 
-use crate::delivery::MapDelivery;
-use crate::farm::Outcome;
-use crate::prepared_cache::Hits;
+use crate::farm::bounded::BoundedReport;
+use crate::job::delivery::MapDelivery;
+use crate::job::prepared_cache::Hits;
 use photon_core::method::{PassStorage, StaticMaps};
 use photon_core::scene::RenderSettings;
 use std::fmt;
@@ -44,6 +45,28 @@ pub struct WorkerReport {
     pub load_s: f64,
     /// `ok` (with the times it rejoined after it was lost), `stalled`, or why it was refused, lost or dropped.
     pub state: String,
+}
+
+/// A finished render ([`crate::farm::render`]): the image and what the report says of it.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    /// Linear RGB, row-major.
+    pub pixels: Vec<f32>,
+    /// Rays traced (by accepted strips).
+    pub rays: u64,
+    /// Photon paths traced by accepted strips (progressive passes; the other methods trace theirs when the job
+    /// is prepared).
+    pub photon_paths: u64,
+    /// One line per worker.
+    pub workers: Vec<WorkerReport>,
+    /// Seconds from the start until the first worker was ready (connection, hello and shipping).
+    pub ship_s: f64,
+    /// Seconds from the first worker ready to the last strip.
+    pub render_s: f64,
+    /// Strips resumed from a partial file.
+    pub resumed: usize,
+    /// What a render bounded by time or error did: passes (samples) in the image, rounds, why it stopped.
+    pub bounded: Option<BoundedReport>,
 }
 
 /// The per-worker table.
@@ -111,7 +134,7 @@ pub struct Summary<'a> {
     /// Which prepared blobs came from the cache, when there is one.
     pub hits: Option<Hits>,
     /// How the workers got the photon maps, for the methods that read them.
-    pub delivery: Option<crate::delivery::Decision>,
+    pub delivery: Option<crate::job::delivery::Decision>,
 }
 
 impl Summary<'_> {

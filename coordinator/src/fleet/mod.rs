@@ -1,7 +1,14 @@
-//! Where the workers come from: a host list file, an address list, worker processes started on loopback, or
-//! one worker server inside this process (the default).
+//! The workers of a render. Here: where they come from (a host list file, an address list, worker processes
+//! started on loopback, or one worker server inside this process, the default). Below: one worker's side of the
+//! wire ([`session`]: connect, hello, blob upload, strip fetch), blobs passed among the workers ([`swarm`]),
+//! lost workers called back ([`rejoin`]), and the signals that stop a render ([`interrupt`]).
 
-use crate::session::WorkerAddr;
+pub mod interrupt;
+pub mod rejoin;
+pub mod session;
+pub mod swarm;
+
+use session::{Greeting, WorkerAddr};
 use std::collections::BTreeSet;
 use std::net::SocketAddr;
 use std::path::{Path, PathBuf};
@@ -180,6 +187,36 @@ impl Fleet {
     pub fn is_in_process(&self) -> bool {
         self.in_process.is_some()
     }
+}
+
+/// Greets each worker at `addrs` (one connection attempt and a hello, within `patience`), in order: `None` for
+/// one that did not answer in time or refused. The model of a remote farm reads their threads ([`threads`]); the
+/// render's sessions go on from these greetings ([`crate::farm::Options::greetings`]), and a worker left out is
+/// tried again by its session and reported as usual.
+pub async fn greet(
+    addrs: &[WorkerAddr],
+    token: Option<&str>,
+    tls_ca: Option<&[u8]>,
+    patience: Duration,
+) -> Vec<Option<Greeting>> {
+    let mut hellos = tokio::task::JoinSet::new();
+    for (i, a) in addrs.iter().enumerate() {
+        let (uri, token, tls_ca) = (a.uri.clone(), token.map(str::to_owned), tls_ca.map(<[u8]>::to_vec));
+        hellos.spawn(async move {
+            let greeting = session::greet(&uri, token.as_deref(), tls_ca.as_deref(), Duration::ZERO);
+            (i, tokio::time::timeout(patience, greeting).await.ok().and_then(Result::ok))
+        });
+    }
+    let mut greetings = vec![None; addrs.len()];
+    while let Some(Ok((i, greeting))) = hellos.join_next().await {
+        greetings[i] = greeting;
+    }
+    greetings
+}
+
+/// The thread count of each worker that answered its greeting (the model's view of a remote farm).
+pub fn threads(greetings: &[Option<Greeting>]) -> Vec<u32> {
+    greetings.iter().flatten().map(|g| g.hello.threads).collect()
 }
 
 /// A host list file:
@@ -465,5 +502,58 @@ mod tests {
         let e = read_hosts(&p).unwrap_err().to_string();
         assert!(e.contains("adress"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// A worker server in this process whose hellos are counted.
+    async fn counting_worker() -> (WorkerAddr, std::sync::Arc<std::sync::atomic::AtomicUsize>) {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        let hellos = std::sync::Arc::new(AtomicUsize::new(0));
+        let counted = hellos.clone();
+        let count = tower::util::MapRequestLayer::new(move |req: tonic::codegen::http::Request<tonic::body::Body>| {
+            if req.uri().path().ends_with("/Hello") {
+                counted.fetch_add(1, Ordering::SeqCst);
+            }
+            req
+        });
+        let worker = photon_worker::Worker::new(photon_worker::Config::default()).unwrap();
+        let service = photon_proto::pb::render_server::RenderServer::new(worker)
+            .max_decoding_message_size(photon_proto::MAX_MESSAGE)
+            .max_encoding_message_size(photon_proto::MAX_MESSAGE);
+        let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+        let addr = WorkerAddr::new(&listener.local_addr().unwrap().to_string(), None);
+        let incoming = tokio_stream::wrappers::TcpListenerStream::new(listener);
+        let server = tonic::transport::Server::builder().layer(count).add_service(service);
+        tokio::spawn(server.serve_with_incoming(incoming));
+        (addr, hellos)
+    }
+
+    /// A job of the Cornell box at 8×8 pixels, one path-traced sample per pixel.
+    fn small_job() -> crate::job::Job {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
+        let mut scene = photon_core::scene::Scene::load(&path).unwrap();
+        (scene.camera.width, scene.camera.height) = (8, 8);
+        (scene.render.integrator, scene.render.spp) = (photon_core::method::Method::Path, 1);
+        let prep = photon_core::prepare::Prepared::new(&scene, &path).unwrap();
+        let (size, frame) = ((prep.camera.width, prep.camera.height), prep.encode_frame().unwrap());
+        let (blob, textures) = (prep.encode_scene().unwrap(), prep.encode_textures().unwrap());
+        crate::job::Job::new(blob, prep.encode_photons().unwrap(), textures, frame, size, &prep.settings)
+    }
+
+    /// The model's greeting is the render's: a worker greeted for its threads hears no second hello, and renders
+    /// the same image as one its session greets.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn a_worker_greeted_for_the_model_hears_one_hello_per_render() {
+        use std::sync::atomic::Ordering;
+        let (addr, hellos) = counting_worker().await;
+        let (job, addrs) = (small_job(), vec![addr]);
+        let greetings = greet(&addrs, None, None, Duration::from_secs(5)).await;
+        assert_eq!(threads(&greetings).len(), 1);
+        let options = crate::farm::Options { greetings, ..crate::farm::Options::default() };
+        let greeted = crate::farm::render(&job, &addrs, options).await.unwrap();
+        assert_eq!(hellos.load(Ordering::SeqCst), 1);
+        let plain = crate::farm::render(&job, &addrs, crate::farm::Options::default()).await.unwrap();
+        assert_eq!(hellos.load(Ordering::SeqCst), 2);
+        let bits = |p: &[f32]| p.iter().map(|v| v.to_bits()).collect::<Vec<u32>>();
+        assert_eq!(bits(&greeted.pixels), bits(&plain.pixels));
     }
 }

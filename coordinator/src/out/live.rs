@@ -16,7 +16,7 @@
 //! no render state: it asks the user for the token, keeps it in the tab's `sessionStorage` and sends it with
 //! its fetches (the preview is fetched and shown through a blob URL, since an `<img src>` cannot carry a header).
 
-use crate::scheduler::{Scheduler, StripId, WorkerState, WorkerStats};
+use crate::farm::scheduler::{Scheduler, StripId, WorkerState, WorkerStats};
 use axum::Router;
 use axum::body::Bytes;
 use axum::extract::State;
@@ -70,7 +70,7 @@ pub struct LiveStatus {
     /// Size of the job's photon-map blob in bytes (0 when the method has none, or each worker traces its own).
     pub photon_blob_bytes: u64,
     /// The relative MSE the render estimated of itself over time (a render bounded by time or error,
-    /// [`crate::bounded`], after each round; [`Board::push_error`]); empty otherwise.
+    /// [`crate::farm::bounded`], after each round; [`Board::push_error`]); empty otherwise.
     pub error: Vec<ErrorPoint>,
     /// The render is over (finished, failed or interrupted): nothing more will change.
     pub finished: bool,
@@ -133,7 +133,7 @@ pub struct LiveWorker {
     pub fetched_bytes: u64,
 }
 
-/// One estimate of the render's error, without a reference ([`crate::bounded`]).
+/// One estimate of the render's error, without a reference ([`crate::farm::bounded`]).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct ErrorPoint {
     /// Seconds since the render started.
@@ -479,7 +479,7 @@ mod tests {
     /// A farm state as `Farm::publish` builds it: two workers, one of them lost, 4 strips of 2 rows.
     fn farm_state() -> (Board, Scheduler) {
         let mut sched = Scheduler::new(8, 2);
-        let (w0, w1) = (crate::scheduler::WorkerId(0), crate::scheduler::WorkerId(1));
+        let (w0, w1) = (crate::farm::scheduler::WorkerId(0), crate::farm::scheduler::WorkerId(1));
         sched.add_worker(w0, 4);
         sched.add_worker(w1, 2);
         let a = sched.assign(w0, Duration::ZERO).unwrap();

@@ -41,7 +41,7 @@ pub struct Policy {
     pub deadline_floor: Duration,
     /// The deadline while no worker has completed a strip yet, so nothing is known of the speed.
     pub first_deadline: Duration,
-    /// The shortest silence after which a busy worker counts as stalled ([`crate::scheduler::Scheduler::silence_limit`]).
+    /// The shortest silence after which a busy worker counts as stalled ([`crate::farm::scheduler::Scheduler::silence_limit`]).
     pub silence_floor: Duration,
     /// Weight of the newest strip in the moving average of seconds per row, in (0, 1].
     pub speed_smoothing: f64,
@@ -167,7 +167,7 @@ pub enum FailureOutcome {
         /// Its other strips still in flight: cancel them on the worker.
         cancel: Vec<StripId>,
     },
-    /// A non-retryable failure: the render cannot finish (see [`crate::scheduler::Scheduler::fatal`]).
+    /// A non-retryable failure: the render cannot finish (see [`crate::farm::scheduler::Scheduler::fatal`]).
     Fatal,
 }
 
@@ -176,7 +176,7 @@ pub enum FailureOutcome {
 pub enum WorkerState {
     /// Registered and taking strips.
     Active,
-    /// Its connection was lost ([`crate::scheduler::Scheduler::worker_lost`]); it may rejoin ([`crate::scheduler::Scheduler::rejoin`]).
+    /// Its connection was lost ([`crate::farm::scheduler::Scheduler::worker_lost`]); it may rejoin ([`crate::farm::scheduler::Scheduler::rejoin`]).
     Lost,
     /// Dropped after too many counted failures, with the reason.
     Dropped(String),

@@ -1,15 +1,16 @@
 //! The commands of the command line: `render`, `compare`, `reference` and `sweep`, each from its parsed
 //! arguments ([`crate::cli`]) to its output files and the lines it prints.
 
+use crate::cli::overrides::{self, Setting};
 use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
-use crate::delivery::{self, MapDelivery};
 use crate::farm::{self, FarmError};
-use crate::fleet;
+use crate::fleet::interrupt::Interrupts;
+use crate::fleet::{self, session::Greeting};
+use crate::job::delivery::{self, MapDelivery};
+use crate::job::prepared_cache::PreparedCache;
 use crate::job::{Partial, partial_path, prepare_job};
-use crate::live::{self, Board};
-use crate::overrides::{self, Setting};
-use crate::prepared_cache::PreparedCache;
-use crate::report::{Summary, print_workers};
+use crate::out::live::{self, Board, LiveServer};
+use crate::out::report::{Summary, print_workers};
 use crate::sweep::{self, sig};
 use anyhow::{Context, Result, bail};
 use photon_core::image_io::{Format, Image};
@@ -51,53 +52,36 @@ fn render(args: RenderArgs) -> Result<()> {
     let bound = bound(&args, &mut scene, t0)?;
     fits_in_memory(&scene, args.rows_per_strip, bound.is_some())?;
     let resume = args.resume.as_deref().map(Partial::read).transpose()?;
-    let cache = match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
-        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
-        _ => None,
-    };
+    let cache = open_cache(&args)?;
     // The runtime outlives the render, so that its signal watch still ends the process at a second signal while
     // the partial file is written. The workers start (and remote ones are asked their threads) before
     // preparing: how they get the photon maps depends on them.
     let rt = runtime()?;
     // The page is up before the workers start, so that an address in use fails at once.
-    let live = match args.serve {
-        Some(addr) => {
-            let board = Arc::new(Board::new(scene.render.exposure));
-            let server = rt.block_on(live::serve(addr, board.clone(), token.as_deref()))?;
-            eprintln!("live page: http://{}/", server.addr());
-            if !server.addr().ip().is_loopback() && token.is_none() {
-                eprintln!(
-                    "warning: the live page is served on {} without a farm token: anyone who can reach it sees the \
-                     image and the workers (give --token-file to require one)",
-                    server.addr()
-                );
-            }
-            Some((board, server))
-        }
-        None => None,
-    };
+    let live = args.serve.map(|addr| serve_live(&rt, addr, scene.render.exposure, token.as_deref())).transpose()?;
     let fleet = rt.block_on(fleet::Fleet::start(&spec))?;
     // The model's view of the workers is needed only when it chooses (a forced mode ignores it).
-    let model_farm = if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
-        rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref()))
-    } else {
-        delivery::Farm::default()
-    };
+    let (model_farm, greetings) =
+        if scene.render.integrator.needs_photon_maps() && args.photon_maps == MapDelivery::Auto {
+            rt.block_on(model_farm(&spec, &fleet, token.as_deref(), tls_ca.as_deref()))
+        } else {
+            (delivery::Farm::default(), Vec::new())
+        };
     let decide = |prep: &Prepared| delivery::choose(args.photon_maps, prep, &model_farm);
     let (mut job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
     if bound.is_some() {
         // Whole-image blocks of passes or samples, in rounds.
-        job.passes = Some(crate::bounded::MAX_PASSES);
+        job.passes = Some(crate::farm::bounded::MAX_PASSES);
     }
     if delivery.is_some_and(|d| d.mode == MapDelivery::Peers) {
-        job.swarm = Some(std::sync::Arc::new(crate::swarm::Swarm::new(tls_ca.clone())));
+        job.swarm = Some(std::sync::Arc::new(crate::fleet::swarm::Swarm::new(tls_ca.clone())));
     }
     let (width, height) = (job.width, job.height);
     let settings = scene.render.clone();
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
 
-    let mut interrupts = rt.block_on(async { crate::interrupt::watch_signals() });
+    let mut interrupts = rt.block_on(async { crate::fleet::interrupt::watch_signals() });
     let options = farm::Options {
         token,
         tls_ca,
@@ -107,6 +91,7 @@ fn render(args: RenderArgs) -> Result<()> {
         interrupt: Some(interrupts.clone()),
         bound: bound.clone(),
         live: live.as_ref().map(|(board, _)| board.clone()),
+        greetings,
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -125,15 +110,8 @@ fn render(args: RenderArgs) -> Result<()> {
         }
         Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
-    let t_assemble = Instant::now();
     let image = Image { width, height, pixels: std::mem::take(&mut outcome.pixels) };
-    image.write(&args.output, settings.exposure)?;
-    if let Some(p) = &args.resume
-        && *p == partial_path(&args.output)
-    {
-        let _ = std::fs::remove_file(p);
-    }
-    let assemble_s = t_assemble.elapsed().as_secs_f64();
+    let assemble_s = write_output(&args, &image, settings.exposure)?;
     if !in_process {
         print_workers(&outcome.workers);
     }
@@ -148,28 +126,72 @@ fn render(args: RenderArgs) -> Result<()> {
     };
     println!("{}", summary.line(&outcome));
     if let Some((_, server)) = live {
-        rt.block_on(async {
-            if args.serve_after {
-                eprintln!(
-                    "live page: the render is over; serving its final state at http://{}/ until Ctrl-C",
-                    server.addr()
-                );
-                crate::interrupt::interrupted(Some(&mut interrupts)).await;
-            }
-            server.stop().await;
-        });
+        rt.block_on(stop_live(server, args.serve_after, &mut interrupts));
     }
     Ok(())
 }
 
-/// The workers as the photon-map delivery model sees them: their threads (asked by a hello for remote ones),
-/// this machine's threads, and the link between them.
+/// The prepared-blob cache of `render`, unless `--no-cache` or no folder for it.
+fn open_cache(args: &RenderArgs) -> Result<Option<PreparedCache>> {
+    Ok(match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
+        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
+        _ => None,
+    })
+}
+
+/// Writes the finished image, and removes the partial file it was resumed from when that is the output's; the
+/// seconds it took.
+fn write_output(args: &RenderArgs, image: &Image, exposure: f32) -> Result<f64> {
+    let t = Instant::now();
+    image.write(&args.output, exposure)?;
+    if let Some(p) = &args.resume
+        && *p == partial_path(&args.output)
+    {
+        let _ = std::fs::remove_file(p);
+    }
+    Ok(t.elapsed().as_secs_f64())
+}
+
+/// Serves the live page on `addr` (`render --serve`), warning when anyone who reaches it may look.
+fn serve_live(
+    rt: &tokio::runtime::Runtime,
+    addr: std::net::SocketAddr,
+    exposure: f32,
+    token: Option<&str>,
+) -> Result<(Arc<Board>, LiveServer)> {
+    let board = Arc::new(Board::new(exposure));
+    let server = rt.block_on(live::serve(addr, board.clone(), token))?;
+    eprintln!("live page: http://{}/", server.addr());
+    if !server.addr().ip().is_loopback() && token.is_none() {
+        eprintln!(
+            "warning: the live page is served on {} without a farm token: anyone who can reach it sees the \
+             image and the workers (give --token-file to require one)",
+            server.addr()
+        );
+    }
+    Ok((board, server))
+}
+
+/// Stops the live page once the render is over; with `--serve-after`, first serves its final state until a
+/// signal.
+async fn stop_live(server: LiveServer, serve_after: bool, interrupts: &mut Interrupts) {
+    if serve_after {
+        eprintln!("live page: the render is over; serving its final state at http://{}/ until Ctrl-C", server.addr());
+        crate::fleet::interrupt::interrupted(Some(interrupts)).await;
+    }
+    server.stop().await;
+}
+
+/// The workers as the photon-map delivery model sees them: their threads, this machine's threads, and the link
+/// between them. Remote workers are greeted for their threads; the greetings are returned for the render's
+/// sessions, which then say no second hello.
 async fn model_farm(
     spec: &fleet::FleetSpec,
     fleet: &fleet::Fleet,
     token: Option<&str>,
     tls_ca: Option<&[u8]>,
-) -> delivery::Farm {
+) -> (delivery::Farm, Vec<Option<Greeting>>) {
+    let mut greetings = Vec::new();
     let here = rayon::current_num_threads() as u32;
     let (worker_threads, link_bytes_per_s) = match spec {
         fleet::FleetSpec::InProcess(threads) => {
@@ -179,13 +201,13 @@ async fn model_farm(
             (vec![(threads / n.max(&1)).max(1) as u32; *n], delivery::LOOPBACK_BYTES_PER_S)
         }
         fleet::FleetSpec::Remote(_) => {
-            let threads = delivery::probe_threads(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
-            (threads, delivery::LINK_BYTES_PER_S)
+            greetings = fleet::greet(&fleet.addrs, token, tls_ca, Duration::from_secs(5)).await;
+            (fleet::threads(&greetings), delivery::LINK_BYTES_PER_S)
         }
     };
     // Workers on this machine share its one link, whether started here or listed by a loopback address.
     let shared_link = !matches!(spec, fleet::FleetSpec::Remote(_)) || fleet.addrs.iter().all(|a| a.is_loopback());
-    delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }
+    (delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }, greetings)
 }
 
 /// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is
@@ -200,7 +222,7 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> 
     let rows = if bounded || r.integrator.renders_passes() {
         c.height
     } else {
-        rows_per_strip.unwrap_or_else(|| crate::scheduler::rows_per_strip_for(c.height, 1))
+        rows_per_strip.unwrap_or_else(|| crate::farm::scheduler::rows_per_strip_for(c.height, 1))
     };
     let estimate = photon_core::prepare::budget::MemoryEstimate::job(c.width, c.height, rows, r, threads);
     tracing::info!(bytes = estimate.total(), budget, "memory estimate");
@@ -212,7 +234,7 @@ fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> 
 /// pixel (or passes, for progressive, vcm, bdpt and lt) become the most a bounded render takes, the range its
 /// blocks are numbered in.
 /// Refuses `--target-error` for the methods whose error no number of samples lowers, and `--spp`/`--passes`.
-fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::bounded::Bound>> {
+fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::farm::bounded::Bound>> {
     if args.time.is_none() && args.target_error.is_none() {
         return Ok(None);
     }
@@ -229,11 +251,11 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         );
     }
     if in_passes {
-        r.photons.passes = crate::bounded::MAX_PASSES;
+        r.photons.passes = crate::farm::bounded::MAX_PASSES;
     } else {
-        r.spp = crate::bounded::MAX_PASSES;
+        r.spp = crate::farm::bounded::MAX_PASSES;
     }
-    Ok(Some(crate::bounded::Bound {
+    Ok(Some(crate::farm::bounded::Bound {
         deadline: args.time.map(|t| t0 + t),
         target_error: args.target_error,
         // The gather (merge) radius of progressive photon mapping and vcm shrinks with α; bdpt and lt are unbiased.
@@ -458,7 +480,7 @@ async fn sweep_rows(
     args: &SweepArgs,
     base: &[String],
     reference: &Image,
-    addrs: &[crate::session::WorkerAddr],
+    addrs: &[crate::fleet::session::WorkerAddr],
     options: farm::Options,
 ) -> Result<Vec<sweep::Row>> {
     let mut rows = Vec::new();
@@ -544,7 +566,7 @@ mod tests {
             let (spp, passes) = (scene.render.spp, scene.render.photons.passes);
             let b = bound(&args, &mut scene, Instant::now()).unwrap().unwrap();
             let in_passes = scene.render.integrator.renders_passes();
-            let max = crate::bounded::MAX_PASSES;
+            let max = crate::farm::bounded::MAX_PASSES;
             assert_eq!(
                 (scene.render.spp, scene.render.photons.passes),
                 if in_passes { (spp, max) } else { (max, passes) },
