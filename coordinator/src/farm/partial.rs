@@ -1,9 +1,9 @@
 //! What a render keeps across an interruption: the finished units of a partial file taken back in
 //! (`--resume`), and the partial file a stopped render leaves.
 
-use super::FarmError;
 use super::scheduler::StripId;
 use super::state::Farm;
+use super::types::FarmError;
 use crate::job::Partial;
 use std::ops::Range;
 

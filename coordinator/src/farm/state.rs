@@ -9,7 +9,7 @@ use super::bounded::{Rounds, StopReason};
 use super::scheduler::{
     Assignment, Completion, FailureOutcome, Scheduler, StripFailure, StripId, WorkerId, WorkerState,
 };
-use super::{FarmError, Options};
+use super::types::{FarmError, Options};
 use crate::fleet::interrupt::Interrupt;
 use crate::fleet::session::{Delivered, StripError, StripResult, WorkerAddr};
 use crate::job::Job;

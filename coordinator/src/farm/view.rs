@@ -1,9 +1,9 @@
 //! What the state of a render shows: how it ended ([`Outcome`] or [`FarmError`]), one line per worker, the
 //! progress bar's rates and the live page's snapshot.
 
-use super::FarmError;
 use super::scheduler::{WorkerId, WorkerState};
 use super::state::{Farm, Stop};
+use super::types::FarmError;
 use crate::out::live::{self, LiveStatus, LiveWorker, Preview};
 use crate::out::report::{Outcome, WorkerReport};
 use std::time::Duration;
