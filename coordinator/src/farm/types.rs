@@ -29,7 +29,7 @@ pub struct Options {
     /// How long the render waits, once no worker is left, for a lost one to come back before it gives up.
     pub rejoin_patience: Duration,
     /// Render in rounds until a time or an estimated error ([`crate::farm::bounded`]); the job must then hand out pass
-    /// blocks ([`Job::passes`]).
+    /// blocks ([`crate::job::Job::passes`]).
     pub bound: Option<crate::farm::bounded::Bound>,
     /// Where the render's state is published for the live page (`render --serve`), if anywhere.
     pub live: Option<std::sync::Arc<crate::out::live::Board>>,

@@ -1,5 +1,5 @@
 //! Rendering: every unit of work, for every method, is a [`Block`] of units (camera samples or whole-image
-//! passes, as the method's [`Unit`] says) over some rows, and its result is the block's fixed-point pixel sums
+//! passes, as the method's [`Unit`](crate::method::Unit) says) over some rows, and its result is the block's fixed-point pixel sums
 //! ([`BlockSums`]). [`render_block`] is the one entry; the farm, the bounded renders and [`render_image`] all go
 //! through it, and an image is its sums divided once ([`sums::SumAccumulator`]).
 //!
