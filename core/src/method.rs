@@ -239,15 +239,17 @@ impl Method {
             Method::FinalGather if maps => Technique::Samples(CameraEstimator::FinalGather),
             Method::PhotonMap | Method::FinalGather => Technique::Samples(CameraEstimator::Direct),
             Method::Progressive => Technique::PhotonPasses,
-            Method::Vcm | Method::Bdpt | Method::Lt => subpaths(self.techniques().unwrap_or(Techniques::LT)),
+            Method::Vcm => subpaths(Techniques::VCM),
+            Method::Bdpt => subpaths(Techniques::BDPT),
+            Method::Lt => subpaths(Techniques::LT),
         }
     }
 
     /// The techniques of a subpath method (`vcm`, `bdpt`, `lt`); `None` for the other methods.
     pub fn techniques(self) -> Option<Techniques> {
         match self {
-            Method::Vcm => Some(Techniques { connect: true, merge: true, light_tracing_only: false }),
-            Method::Bdpt => Some(Techniques { connect: true, merge: false, light_tracing_only: false }),
+            Method::Vcm => Some(Techniques::VCM),
+            Method::Bdpt => Some(Techniques::BDPT),
             Method::Lt => Some(Techniques::LT),
             Method::Path | Method::Direct | Method::PhotonMap | Method::FinalGather | Method::Progressive => None,
         }
@@ -309,9 +311,9 @@ impl Method {
         match self {
             Method::Path | Method::Direct | Method::PhotonMap | Method::FinalGather => PassStorage::None,
             Method::Progressive => PassStorage::PhotonMap,
-            Method::Vcm | Method::Bdpt | Method::Lt => {
-                PassStorage::LightSubpaths(self.techniques().unwrap_or(Techniques::LT))
-            }
+            Method::Vcm => PassStorage::LightSubpaths(Techniques::VCM),
+            Method::Bdpt => PassStorage::LightSubpaths(Techniques::BDPT),
+            Method::Lt => PassStorage::LightSubpaths(Techniques::LT),
         }
     }
 
@@ -341,6 +343,10 @@ impl Method {
 }
 
 impl Techniques {
+    /// vcm's techniques: connections and merges.
+    pub const VCM: Techniques = Techniques { connect: true, merge: true, light_tracing_only: false };
+    /// bdpt's techniques: connections, no merges.
+    pub const BDPT: Techniques = Techniques { connect: true, merge: false, light_tracing_only: false };
     /// Light tracing's techniques.
     pub const LT: Techniques = Techniques { connect: false, merge: false, light_tracing_only: true };
 }

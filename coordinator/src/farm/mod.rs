@@ -283,12 +283,11 @@ fn spawn_strip(job: &Job, worker: WorkerId, a: Assignment, client: Client, tx: U
         trace_photons: job.trace_photons,
         texture_blobs: job.texture_blobs.clone(),
     };
-    let (strip, attempt, width, job_by_rows) = (a.strip, a.attempt, job.width, job.passes.is_none());
+    let (strip, attempt, width, by_rows) = (a.strip, a.attempt, job.width, job.passes.is_none());
     let progress_tx = tx.clone();
     let handle = tokio::spawn(async move {
         // The worker counts units done; a strip's progress is counted in its rows.
         let (strip_rows, block_units) = (rows.len() as u64, u64::from(units.len() as u32).max(1));
-        let by_rows = job_by_rows;
         let progress = |units_done: u32| {
             let rows = if by_rows { (u64::from(units_done) * strip_rows / block_units) as u32 } else { units_done };
             let _ = progress_tx.send(Event::Progress { worker, rows });

@@ -145,10 +145,11 @@ fn scene_size(geometry: &Geometry) -> f32 {
 fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::path::Path) -> Result<(), SceneError> {
     let ph = &scene.render.photons;
     let setting = scene.render.integrator.radius();
-    let (field, radius) = match setting {
-        RadiusSetting::None => return Ok(()),
-        RadiusSetting::Photon => (setting.field().unwrap_or_default(), ph.radius),
-        RadiusSetting::Merge => (setting.field().unwrap_or_default(), ph.merge_radius),
+    let Some(field) = setting.field() else { return Ok(()) };
+    let radius = match setting {
+        RadiusSetting::Photon => ph.radius,
+        RadiusSetting::Merge => ph.merge_radius,
+        RadiusSetting::None => None,
     };
     let Some(radius) = radius else { return Ok(()) };
     let size = scene_size(geometry);
