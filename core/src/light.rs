@@ -247,6 +247,7 @@ impl LightSet {
         if self.lights.is_empty() {
             return None;
         }
+        // `pmf` is as long as `lights` ([`LightSet::new`]; a scene blob's is checked on decode).
         let i = self.cdf.partition_point(|&c| c <= u).min(self.lights.len() - 1);
         Some((i, self.pmf[i]))
     }
@@ -255,6 +256,12 @@ impl LightSet {
     #[inline]
     pub fn pmf(&self, i: usize) -> f32 {
         self.pmf.get(i).copied().unwrap_or(0.0)
+    }
+
+    /// The lengths of the choice tables (cumulative, per light): each is the number of lights in a set that
+    /// [`LightSet::new`] made; a scene blob's are checked against it.
+    pub fn table_lens(&self) -> (usize, usize) {
+        (self.cdf.len(), self.pmf.len())
     }
 
     /// Total power of all lights (W) per channel.

@@ -231,6 +231,8 @@ impl Geometry {
     /// consistent outside (which glass needs).
     #[allow(clippy::type_complexity)]
     fn mesh_shading(&self, tri: &shapes::Triangle, b: Vec2, n: Vec3A) -> (Vec3A, Vec3A, Option<(Vec2, Vec3A, Vec3A)>) {
+        // Normal and UV indices are below their tables: the prepared scene makes them so, and decoding a scene
+        // blob checks them (`prepare::blobs`).
         let face = tri.face;
         let Some(m) = self.meshes.get(tri.mesh as usize) else { return (n, n, None) };
         let w = [1.0 - b.x - b.y, b.x, b.y];

@@ -6,8 +6,9 @@ use super::Prepared;
 use crate::camera::Camera;
 use crate::codec::{self, CodecError};
 use crate::error::FieldError;
-use crate::geometry::Geometry;
-use crate::light::LightSet;
+use crate::geometry::shapes::{NO_MESH, Shape};
+use crate::geometry::{Geometry, MeshShading, NONE};
+use crate::light::{Light, LightSet};
 use crate::material::{Material, TexelImage};
 use crate::medium::Media;
 use crate::scene::RenderSettings;
@@ -32,9 +33,11 @@ struct SceneOwned {
 }
 
 impl SceneOwned {
-    /// Decodes a scene blob of at most `limit` bytes and checks its media's coefficients.
+    /// Decodes a scene blob of at most `limit` bytes and checks every index in it
+    /// ([`SceneOwned::check_indices`]) and its media's coefficients.
     fn decode(scene: &[u8], limit: usize) -> Result<Self, FrameError> {
         let mut s: SceneOwned = codec::decode(scene, limit)?;
+        s.check_indices()?;
         // Whether shadow rays look past `interface` surfaces follows from the materials, not from the blob.
         let interfaces = s.materials.iter().any(Material::is_interface);
         match &mut s.media {
@@ -51,6 +54,143 @@ impl SceneOwned {
         }
         Ok(s)
     }
+
+    /// Checks every index the scene blob holds against the table it points into, once, so that rendering a
+    /// scene that passed indexes nothing out of range (a prepared scene passes; a forged or corrupted blob with
+    /// a correct hash may not):
+    /// - meshes: each normal and UV index of each face corner below the mesh's normal and UV count, and its
+    ///   `normal_indices` and `uv_indices` (each empty or one entry per face) of the same length;
+    /// - primitives and planes: the material below the material count; the object below the media's boundary
+    ///   count (objects index nothing else); a mesh triangle's mesh below the mesh count and its face below
+    ///   that mesh's face count (when the mesh has per-face data);
+    /// - lights: a primitive's light below the light count, and that light an area light on this primitive;
+    ///   each area light's primitive below the primitive count, and that primitive carrying this light; the
+    ///   light choice tables and the media's light list as long as the light list.
+    ///
+    /// Triangles carry their vertices, not indices; the BVH is not in the blob (decoding builds it); texture
+    /// slots are checked against the texture blobs (`check_slots`).
+    fn check_indices(&self) -> Result<(), FrameError> {
+        let g = &self.geometry;
+        g.meshes.iter().enumerate().try_for_each(|(m, mesh)| check_mesh(m, mesh))?;
+        check_lights(&self.lights, g, self.media.as_ref())?;
+        let objects = self.media.as_ref().map(|m| m.boundaries.len());
+        check_surfaces(g, self.materials.len(), &self.lights.lights, objects)
+    }
+}
+
+/// Each area light's primitive, carrying that light; the choice tables and the media's light list as long as
+/// the light list.
+fn check_lights(lights: &LightSet, g: &Geometry, media: Option<&Media>) -> Result<(), FrameError> {
+    for (l, light) in lights.lights.iter().enumerate() {
+        if let Light::Area { prim, .. } = *light {
+            within(prim, g.prims.len(), || format!("lights[{l}].prim"), || "prims".into())?;
+            let carried = g.prims.get(prim as usize).map_or(NONE, |p| p.light);
+            if carried as usize != l {
+                return Err(bad_table(
+                    format!("lights[{l}].prim"),
+                    format!("is {prim}, but prims[{prim}].light is {carried}"),
+                ));
+            }
+        }
+    }
+    let n = lights.lights.len();
+    let (cdf, pmf) = lights.table_lens();
+    let media_lights = media.map(|m| ("media.lights", m.lights.len()));
+    for (table, len) in [("lights.cdf", cdf), ("lights.pmf", pmf)].into_iter().chain(media_lights) {
+        if len != n {
+            return Err(bad_table(table.into(), format!("has {len} entries, but there are {n} lights")));
+        }
+    }
+    Ok(())
+}
+
+/// The primitives' and planes' materials, objects (when there are media: `objects` boundaries), lights (an area
+/// light on the primitive) and mesh triangles' meshes and faces.
+fn check_surfaces(g: &Geometry, materials: usize, lights: &[Light], objects: Option<usize>) -> Result<(), FrameError> {
+    for (i, p) in g.prims.iter().enumerate() {
+        let field = |f: &str| format!("prims[{i}].{f}");
+        within(p.material, materials, || field("material"), || "materials".into())?;
+        if let Some(n) = objects {
+            within(p.object, n, || field("object"), || "media.boundaries".into())?;
+        }
+        if p.light != NONE {
+            within(p.light, lights.len(), || field("light"), || "lights".into())?;
+            if !matches!(lights.get(p.light as usize), Some(Light::Area { prim, .. }) if *prim as usize == i) {
+                return Err(bad_table(
+                    field("light"),
+                    format!("is {}, but lights[{}] is not an area light on prims[{i}]", p.light, p.light),
+                ));
+            }
+        }
+        if let Shape::Triangle(t) = p.shape
+            && t.mesh != NO_MESH
+        {
+            within(t.mesh, g.meshes.len(), || field("shape.mesh"), || "meshes".into())?;
+            if let Some(mesh) = g.meshes.get(t.mesh as usize) {
+                let (faces, table) = face_table(mesh);
+                if faces > 0 {
+                    within(t.face, faces, || field("shape.face"), || format!("meshes[{}].{table}", t.mesh))?;
+                }
+            }
+        }
+    }
+    for (i, p) in g.planes.iter().enumerate() {
+        within(p.material, materials, || format!("planes[{i}].material"), || "materials".into())?;
+        if let Some(n) = objects {
+            within(p.object, n, || format!("planes[{i}].object"), || "media.boundaries".into())?;
+        }
+    }
+    Ok(())
+}
+
+/// A mesh's face count as its per-face tables give it, and the table that gives it (0 when it has neither).
+fn face_table(mesh: &MeshShading) -> (usize, &'static str) {
+    if mesh.normal_indices.is_empty() {
+        (mesh.uv_indices.len(), "uv_indices")
+    } else {
+        (mesh.normal_indices.len(), "normal_indices")
+    }
+}
+
+/// Mesh `m`'s normal and UV indices against its normals and UVs, and its two per-face tables against each other.
+fn check_mesh(m: usize, mesh: &MeshShading) -> Result<(), FrameError> {
+    let (n, uv) = (mesh.normal_indices.len(), mesh.uv_indices.len());
+    if n != 0 && uv != 0 && n != uv {
+        return Err(bad_table(
+            format!("meshes[{m}].uv_indices"),
+            format!("has {uv} faces, but meshes[{m}].normal_indices has {n}"),
+        ));
+    }
+    for (ixs, name, len, table) in [
+        (&mesh.normal_indices, "normal_indices", mesh.normals.len(), "normals"),
+        (&mesh.uv_indices, "uv_indices", mesh.uvs.len(), "uvs"),
+    ] {
+        for (f, ix) in ixs.iter().enumerate() {
+            for (k, &i) in ix.iter().enumerate() {
+                within(i, len, || format!("meshes[{m}].{name}[{f}][{k}]"), || format!("meshes[{m}].{table}"))?;
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `Ok` when `index` is below `len`, else [`FrameError::BadIndex`] (its names made only then).
+fn within(
+    index: u32,
+    len: usize,
+    field: impl FnOnce() -> String,
+    table: impl FnOnce() -> String,
+) -> Result<(), FrameError> {
+    if (index as usize) < len {
+        Ok(())
+    } else {
+        Err(FrameError::BadIndex { field: field(), index, table: table(), len })
+    }
+}
+
+/// [`FrameError::BadTable`].
+fn bad_table(table: String, message: String) -> FrameError {
+    FrameError::BadTable { table, message }
 }
 
 /// The frame blob, borrowed and owned.
@@ -81,6 +221,27 @@ pub enum FrameError {
     /// A texture blob that does not decode or check, or a material whose image slot has no texture blob.
     #[error("textures: {0}")]
     Textures(String),
+    /// An index in a scene blob at or past the end of the table it points into (a forged or corrupted blob).
+    #[error("scene blob: {field} = {index}, but {table} has {len} entries")]
+    BadIndex {
+        /// Where the index is, e.g. `meshes[2].normal_indices[17][1]` or `prims[40].material`.
+        field: String,
+        /// The index found.
+        index: u32,
+        /// The table it points into, e.g. `meshes[2].normals` or `materials`.
+        table: String,
+        /// That table's length.
+        len: usize,
+    },
+    /// A table of a scene blob that disagrees with another: a choice table shorter than the light list, a
+    /// mesh's UV faces not matching its normal faces, a primitive's light that is not an area light on it.
+    #[error("scene blob: {table} {message}")]
+    BadTable {
+        /// The field or table, e.g. `lights.pmf` or `prims[3].light`.
+        table: String,
+        /// What it holds and what it disagrees with.
+        message: String,
+    },
 }
 
 impl Frame {
