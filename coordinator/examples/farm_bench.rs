@@ -352,7 +352,8 @@ fn model() {
         // `--photon-maps trace`).
         let mut deliveries = vec![("", job.blob_bytes() as f64, prepare_s, load_core_s, false)];
         if integrator.needs_photon_maps() {
-            let (traced_load_s, _) = one_thread(|| decode(None).build_photon_maps().expect("maps"));
+            let (traced_load_s, _) =
+                one_thread(|| decode(None).build_photon_maps(&photon_core::run::Guard::unbounded()).expect("maps"));
             let scene_bytes = job.blobs[&job.scene_blob].len() as f64;
             deliveries[0].0 = ", maps shipped";
             deliveries.push((", maps among peers", job.blob_bytes() as f64, prepare_s, load_core_s, true));
@@ -363,7 +364,8 @@ fn model() {
             // Two passes over 8 rows: the photon (light path) part is per pass, the gather part per row.
             let (t, block) = one_thread(|| {
                 let block = photon_core::render::Block { rows: 0..rows, units: 0..2 };
-                photon_core::render::render_block(&prep, &block, &|_| true).expect("passes")
+                photon_core::render::render_block(&prep, &block, &|_| {}, &photon_core::run::Guard::unbounded())
+                    .expect("passes")
             });
             let photon_part = block.photon_seconds / 2.0;
             let per_pass = photon_part + (t - block.photon_seconds) / 2.0 / f64::from(rows) * f64::from(height);

@@ -297,9 +297,9 @@ fn main() -> Result<(), Error> {
     let mut twin = prep.clone();
     twin.settings.seed = twin.settings.seed.wrapping_add(1);
     let t = Instant::now();
-    prep.photons = Some(prep.build_photon_maps()?);
+    prep.photons = Some(prep.build_photon_maps(&photon_core::run::Guard::unbounded())?);
     let build_s = t.elapsed().as_secs_f64();
-    twin.photons = Some(twin.build_photon_maps()?);
+    twin.photons = Some(twin.build_photon_maps(&photon_core::run::Guard::unbounded())?);
     let stored = prep.photons.as_ref().map_or(0, |m| m.global.len());
     println!("global map: {} paths, {stored} photons stored, built in {build_s:.2} s", o.photons);
 

@@ -83,6 +83,7 @@ pub mod metrics;
 pub mod photon;
 pub mod prepare;
 pub mod render;
+pub mod run;
 pub mod scene;
 
 /// Linear RGB radiance, power or reflectance.

@@ -5,10 +5,13 @@
 
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
+use photon_core::render::sums::MAX_BLOCK_UNITS;
 use photon_core::render::{Block, job_units, render_block, render_rows};
+use photon_core::run::{Cancel, Guard, RunError};
 use photon_core::scene::Scene;
 use std::path::Path;
 use std::sync::atomic::{AtomicU32, Ordering};
+use std::time::{Duration, Instant};
 
 fn cornell(integrator: Method) -> Prepared {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/cornell.toml");
@@ -50,18 +53,50 @@ fn blobs_render_the_same_bytes() {
 
 #[test]
 fn a_cancelled_render_stops_early() {
-    for integrator in [Method::Path, Method::Progressive] {
+    for integrator in [Method::Path, Method::Progressive, Method::Vcm] {
         let prep = cornell(integrator);
         let calls = AtomicU32::new(0);
-        let cancel = |_| {
+        let stop = Cancel::new();
+        let progress = |_| {
             calls.fetch_add(1, Ordering::Relaxed);
-            false
+            stop.cancel();
         };
         let block = Block { rows: 0..prep.camera.height, units: 0..job_units(&prep) };
-        let out = render_block(&prep, &block, &cancel);
-        assert!(out.is_none(), "{integrator}");
-        // Rows already started finish; no new row starts once the first one has asked to stop (one per thread).
+        let out = render_block(&prep, &block, &progress, &Guard { cancel: &stop, storage_bytes: u64::MAX });
+        assert_eq!(out.err(), Some(RunError::Cancelled), "{integrator}");
+        // No pixel starts once the flag is set: only rows that finished at that moment report (one per thread).
         let started = calls.load(Ordering::Relaxed);
         assert!(started <= rayon::current_num_threads() as u32 + 1, "{integrator}: {started} rows after cancel");
+    }
+}
+
+/// A block that would take minutes stops within a second or two of its flag being set, from another thread:
+/// the flag is read before every sample of a pixel, every pixel, photon path and light subpath. (A loose bound
+/// on a loaded machine: the point is that a cancelled block does not run to its end.)
+#[test]
+fn a_long_block_stops_soon_after_it_is_cancelled() {
+    for integrator in [Method::Path, Method::Progressive, Method::Vcm] {
+        let mut prep = cornell(integrator);
+        prep.settings.photons.pass_photons = 2_000_000;
+        prep.settings.spp = MAX_BLOCK_UNITS;
+        prep.settings.photons.passes = MAX_BLOCK_UNITS;
+        // One row of many samples: before, cancellation was read only when a row finished.
+        let block = Block { rows: 0..1, units: 0..MAX_BLOCK_UNITS };
+        let stop = Cancel::new();
+        let guard = Guard { cancel: &stop, storage_bytes: u64::MAX };
+        let t0 = Instant::now();
+        let out = std::thread::scope(|s| {
+            s.spawn(|| {
+                std::thread::sleep(Duration::from_millis(200));
+                stop.cancel();
+            });
+            render_block(&prep, &block, &|_| {}, &guard)
+        });
+        let took = t0.elapsed();
+        assert_eq!(out.err(), Some(RunError::Cancelled), "{integrator}");
+        assert!(
+            took < Duration::from_secs(3),
+            "{integrator}: stopped {took:?} after the start, 200 ms after which it was cancelled"
+        );
     }
 }

@@ -7,6 +7,7 @@ use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::render::sums::{SumAccumulator, check_sums};
 use photon_core::render::{Block, BlockSums, render_block, render_image};
+use photon_core::run::{Cancel, Guard, RunError};
 use photon_core::scene::Scene;
 use std::ops::Range;
 use std::path::Path;
@@ -28,7 +29,7 @@ fn cornell_with(integrator: Method, passes: u32) -> Prepared {
 
 /// Units `units` over rows `rows`.
 fn blocks(prep: &Prepared, rows: Range<u32>, units: Range<u32>) -> BlockSums {
-    render_block(prep, &Block { rows, units }, &|_| true).unwrap()
+    render_block(prep, &Block { rows, units }, &|_| {}, &Guard::unbounded()).unwrap()
 }
 
 fn bits(v: &[f32]) -> Vec<u32> {
@@ -96,10 +97,13 @@ fn a_block_over_some_rows_gives_those_rows_of_the_whole_block() {
 fn a_cancelled_block_stops_after_the_pass_that_asked() {
     let prep = cornell(5);
     let calls = std::sync::atomic::AtomicU32::new(0);
-    let out = render_block(&prep, &Block { rows: 0..prep.camera.height, units: 0..5 }, &|_| {
+    let stop = Cancel::new();
+    let progress = |_| {
         calls.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        false
-    });
-    assert!(out.is_none());
+        stop.cancel();
+    };
+    let guard = Guard { cancel: &stop, storage_bytes: u64::MAX };
+    let out = render_block(&prep, &Block { rows: 0..prep.camera.height, units: 0..5 }, &progress, &guard);
+    assert_eq!(out.err(), Some(RunError::Cancelled));
     assert_eq!(calls.load(std::sync::atomic::Ordering::Relaxed), 1);
 }

@@ -175,6 +175,8 @@ pub mod transport {
     pub const KEEPALIVE_INTERVAL: Duration = Duration::from_secs(10);
     /// How long a ping may go unanswered before the connection is declared dead.
     pub const KEEPALIVE_TIMEOUT: Duration = Duration::from_secs(20);
+    /// How long a server waits for a client's TLS handshake.
+    pub const TLS_HANDSHAKE_TIMEOUT: Duration = Duration::from_secs(10);
     /// How long the coordinator waits for a worker's TCP connection.
     pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -218,7 +220,7 @@ pub mod transport {
     /// A server builder that speaks TLS with the certificate chain and key in `cert_pem` and `key_pem`.
     pub fn tls_server(cert_pem: &[u8], key_pem: &[u8]) -> Result<tonic::transport::Server, tonic::transport::Error> {
         let identity = tonic::transport::Identity::from_pem(cert_pem, key_pem);
-        server().tls_config(tonic::transport::ServerTlsConfig::new().identity(identity))
+        server().tls_config(tonic::transport::ServerTlsConfig::new().identity(identity).timeout(TLS_HANDSHAKE_TIMEOUT))
     }
 
     /// The connections a server accepts on `listener`, with TCP_NODELAY (a server given its own listener does not

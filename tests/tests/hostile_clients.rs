@@ -203,7 +203,8 @@ async fn hostile_requests_are_refused_and_the_worker_then_renders_a_correct_stri
     // And the next is the strip this process renders.
     let got = render(&mut c, request(&scene_id, prep.encode_frame().unwrap(), (0, 4))).await.unwrap();
     let block = photon_core::render::Block { rows: 0..4, units: 0..1 };
-    let expected = photon_core::render::render_block(&prep, &block, &|_| true).unwrap();
+    let expected =
+        photon_core::render::render_block(&prep, &block, &|_| {}, &photon_core::run::Guard::unbounded()).unwrap();
     assert_eq!(got, photon_proto::sums_to_bytes(&expected.sums));
 
     // Nothing was allocated from the doctored sizes: the worker's peak resident memory stays small (a width of

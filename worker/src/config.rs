@@ -28,8 +28,19 @@ pub struct Config {
     /// `upload_idle + size / upload_min_rate`.
     pub upload_min_rate: u64,
     /// Memory one strip's buffers may take, in bytes (default: half the machine's memory); a larger strip is
-    /// refused before it allocates ([`photon_core::prepare::budget::MemoryEstimate::strip`]).
+    /// refused before it allocates ([`photon_core::prepare::budget::MemoryEstimate::strip`]), and a run that
+    /// stores more photons or light vertices than this stops with `FAILED_PRECONDITION`
+    /// ([`photon_core::run::Guard::storage_bytes`]).
     pub strip_memory_bytes: u64,
+    /// The most work one strip may ask for, in path vertices (pixels × units × `render.max_depth`); more is
+    /// refused as `INVALID_ARGUMENT` (photon-worker `--max-strip-work`).
+    pub max_strip_work: u64,
+    /// How long a new connection may take to send its first bytes (the HTTP/2 preface, or a TLS handshake's
+    /// first record) before it is closed (photon-worker `--handshake-timeout-s`).
+    pub handshake_timeout: Duration,
+    /// Connections open at once; at the cap a new connection closes the oldest one that has not finished its
+    /// handshake, or is itself refused when all have (photon-worker `--max-connections`).
+    pub max_connections: usize,
     /// Strip requests that may wait behind the one rendering.
     pub max_queue: usize,
     /// Calls one remote IP address may have in progress at once, over all its connections.
@@ -58,6 +69,9 @@ impl Default for Config {
             upload_idle: Duration::from_secs(30),
             upload_min_rate: 256 << 10,
             strip_memory_bytes: if memory == 0 { u64::MAX } else { memory / 2 },
+            max_strip_work: DEFAULT_MAX_STRIP_WORK,
+            handshake_timeout: Duration::from_secs(10),
+            max_connections: 512,
             max_queue: 4,
             max_calls_per_peer: photon_proto::transport::CALLS_PER_PEER,
             build_id: photon_proto::BUILD_ID.to_owned(),
@@ -68,6 +82,10 @@ impl Default for Config {
     }
 }
 
+/// The default of [`Config::max_strip_work`]: 2⁴⁸ path vertices, about a 1920 × 1080 image at 8192 samples
+/// per pixel and 16 bounces, or hours of one 16-core machine's work. The farm's blocks stay far below it.
+pub const DEFAULT_MAX_STRIP_WORK: u64 = 1 << 48;
+
 /// What a strip request is checked against.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
@@ -75,6 +93,10 @@ pub struct Limits {
     pub strip_memory_bytes: u64,
     /// The worker's render threads (each keeps its own k-nearest buffer).
     pub threads: usize,
+    /// Bytes of the texture images the request names: their blobs' sizes, each once (0 when it names none).
+    pub texture_bytes: u64,
+    /// The most path vertices one strip may ask for ([`Config::max_strip_work`]).
+    pub max_strip_work: u64,
 }
 
 /// Physical memory in bytes, 0 where it is not known.

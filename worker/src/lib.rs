@@ -26,10 +26,12 @@
 //! | `RESOURCE_EXHAUSTED` | a blob larger than [`Config::max_blob_bytes`] |
 //! | `RESOURCE_EXHAUSTED` | uploads in progress hold the upload memory ([`Config::upload_budget_bytes`]) |
 //! | `RESOURCE_EXHAUSTED` | a strip that would not fit the worker's memory ([`Config::strip_memory_bytes`]) |
+//! | `FAILED_PRECONDITION` | a strip whose photons or light vertices, traced, pass that memory ([`photon_core::run::StorageError`]) |
 //! | `RESOURCE_EXHAUSTED` | [`Config::max_queue`] strips wait already |
 //! | `RESOURCE_EXHAUSTED` | a peer (a remote IP address) has [`Config::max_calls_per_peer`] calls in progress |
 //! | `RESOURCE_EXHAUSTED` | the most blobs served to peers at once ([`photon_proto::transport::SERVED_AT_ONCE`]) |
-//! | `INVALID_ARGUMENT` | an id that is not a blob id, or more ids in one request than accepted |
+//! | `INVALID_ARGUMENT` | an id that is not a blob id, more ids in one request than accepted, or a texture named twice |
+//! | `INVALID_ARGUMENT` | a strip of more work than [`Config::max_strip_work`] (pixels × units × `max_depth`) |
 //! | `INVALID_ARGUMENT` | a truncated or overlong upload |
 //! | `INVALID_ARGUMENT` | a frame whose sizes or settings are out of range, or whose method lacks its photons blob |
 //! | `INVALID_ARGUMENT` | blobs that do not decode |
@@ -39,10 +41,14 @@
 //! | `NOT_FOUND` | an unknown blob |
 //! | `OUT_OF_RANGE` | empty rows or rows outside the image; units outside the job's |
 //! | `ABORTED` | a fetch that fails through the peer: unreachable, refusing, or sending other bytes |
-//! | `CANCELLED` | a strip whose coordinator left while it rendered |
+//! | `CANCELLED` | a strip whose call ended (cancelled, dropped, past its deadline) while it rendered; its slot is free within a second, and one that waited gives up its queue place at once |
 //! | `INTERNAL` | a panic while rendering (a bug): that strip fails, not the worker |
 //!
 //! A strip request's refusals name the field ([`check_strip_request`]); a per-peer refusal names the cap.
+//!
+//! Below gRPC, a connection that does not send its first bytes within [`Config::handshake_timeout`] is closed,
+//! and at most [`Config::max_connections`] are open at once; at the cap the oldest connection still in its
+//! handshake makes way for the new one (`listen.rs`).
 //!
 //! ## Fault injection
 //!
@@ -82,10 +88,11 @@ mod config;
 pub mod disk_store;
 #[cfg(feature = "fault-injection")]
 mod fault;
+mod listen;
 mod server;
 mod strip;
 
-pub use config::{Config, Limits};
+pub use config::{Config, DEFAULT_MAX_STRIP_WORK, Limits};
 #[cfg(feature = "fault-injection")]
 pub use fault::Fault;
 pub use server::serve;
@@ -166,9 +173,14 @@ impl Worker {
         self.pool.current_num_threads()
     }
 
-    /// What this worker checks strip requests against.
+    /// What this worker checks strip requests against (with no texture images: a request adds its own).
     pub fn limits(&self) -> Limits {
-        Limits { strip_memory_bytes: self.config.strip_memory_bytes, threads: self.threads() }
+        Limits {
+            strip_memory_bytes: self.config.strip_memory_bytes,
+            threads: self.threads(),
+            texture_bytes: 0,
+            max_strip_work: self.config.max_strip_work,
+        }
     }
 }
 

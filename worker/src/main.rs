@@ -52,6 +52,22 @@ struct Cli {
     /// Calls one remote IP address may have in progress at once, over all its connections; more are refused.
     #[arg(long, default_value_t = photon_proto::transport::CALLS_PER_PEER)]
     max_calls_per_peer: usize,
+    /// Memory one strip may take, in MiB: its buffers (a larger strip is refused before it starts) and the
+    /// photons or light vertices it traces (tracing past it stops with an error). Default: half the machine's
+    /// memory.
+    #[arg(long)]
+    strip_memory_mib: Option<u64>,
+    /// The most work one strip may ask for, in path vertices (pixels × samples or passes × render.max_depth).
+    #[arg(long, default_value_t = photon_worker::DEFAULT_MAX_STRIP_WORK)]
+    max_strip_work: u64,
+    /// Seconds a new connection may take to send its first bytes (the HTTP/2 preface, or the start of a TLS
+    /// handshake) before it is closed.
+    #[arg(long, default_value_t = 10.0)]
+    handshake_timeout_s: f64,
+    /// Connections open at once (keep it below the open-file limit, `ulimit -n`); at the cap the oldest one
+    /// still in its handshake is closed for the new one.
+    #[arg(long, default_value_t = 512)]
+    max_connections: usize,
     /// Test only: claim this build id instead of the real one.
     #[arg(long, hide = true)]
     test_build_id: Option<String>,
@@ -137,6 +153,15 @@ fn run(cli: Cli) -> Result<()> {
     if cli.upload_min_kib_s == 0 {
         bail!("--upload-min-kib-s must be at least 1");
     }
+    if !(cli.handshake_timeout_s.is_finite() && cli.handshake_timeout_s > 0.0 && cli.handshake_timeout_s <= 3600.0) {
+        bail!("--handshake-timeout-s must be a number of seconds in (0, 3600], found {}", cli.handshake_timeout_s);
+    }
+    if cli.max_connections == 0 {
+        bail!("--max-connections must be at least 1");
+    }
+    if cli.strip_memory_mib == Some(0) || cli.max_strip_work == 0 {
+        bail!("--strip-memory-mib and --max-strip-work must be at least 1");
+    }
     let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose()?;
     let read =
         |p: &PathBuf, what: &str| std::fs::read(p).with_context(|| format!("reading the {what} {}", p.display()));
@@ -155,8 +180,14 @@ fn run(cli: Cli) -> Result<()> {
         upload_idle: std::time::Duration::from_secs_f64(cli.upload_idle_s),
         upload_min_rate: cli.upload_min_kib_s << 10,
         max_calls_per_peer: cli.max_calls_per_peer,
+        max_strip_work: cli.max_strip_work,
+        handshake_timeout: std::time::Duration::from_secs_f64(cli.handshake_timeout_s),
+        max_connections: cli.max_connections,
         ..Config::default()
     };
+    if let Some(mib) = cli.strip_memory_mib {
+        config.strip_memory_bytes = mib.saturating_mul(1 << 20);
+    }
     if let Some(id) = cli.test_build_id {
         config.build_id = id;
     }

@@ -12,13 +12,15 @@ use std::net::{IpAddr, SocketAddr};
 use std::sync::{Arc, Mutex};
 use tonic::{Request, Status};
 
-/// Serves `worker` on `listener` until `shutdown` resolves; strips in progress are cancelled then.
+/// Serves `worker` on `listener` until `shutdown` resolves; strips in progress are cancelled then. The
+/// connections are guarded ([`crate::Config::handshake_timeout`], [`crate::Config::max_connections`]).
 pub async fn serve(
     worker: Worker,
     listener: tokio::net::TcpListener,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> Result<(), tonic::transport::Error> {
     let token = worker.config.token.clone();
+    let (handshake, max_connections) = (worker.config.handshake_timeout, worker.config.max_connections);
     let builder = match &worker.config.tls {
         Some((cert, key)) => photon_proto::transport::tls_server(cert, key)?,
         None => photon_proto::transport::server(),
@@ -40,7 +42,7 @@ pub async fn serve(
     builder
         .add_service(health_service)
         .add_service(tonic::service::interceptor::InterceptedService::new(service, check))
-        .serve_with_incoming_shutdown(photon_proto::transport::incoming(listener), shutdown)
+        .serve_with_incoming_shutdown(crate::listen::incoming(listener, handshake, max_connections), shutdown)
         .await
 }
 

@@ -6,11 +6,13 @@ use crate::Worker;
 use crate::cache::BlobCache;
 use crate::config::Limits;
 use photon_core::method::Unit;
+use photon_core::photon::PhotonMapError;
 use photon_core::prepare::Prepared;
 use photon_core::prepare::blobs::{Frame, FrameError, decode_textures};
 use photon_core::prepare::budget::MemoryEstimate;
 use photon_core::render::sums::MAX_BLOCK_UNITS;
 use photon_core::render::{Block, render_block};
+use photon_core::run::{Cancel, Guard, RunError};
 use photon_core::scene::RenderSettings;
 use photon_proto::pb::{self, strip_event::Event};
 use photon_proto::{MAX_CHUNK, quote};
@@ -87,6 +89,7 @@ pub fn check_strip_request(r: pb::StripRequest, limits: &Limits) -> Result<Strip
     }
     check_photon_maps(&r, &frame.settings)?;
     check_units(&r, &frame.settings)?;
+    check_work(&r, &frame, limits)?;
     check_memory(&r, &frame, limits)?;
     Ok(StripOrder {
         frame_id: photon_proto::blob_id(&r.frame),
@@ -127,6 +130,15 @@ fn check_blob_ids(r: &pb::StripRequest) -> Result<(), Status> {
             "texture_blobs[{i}]: {} is not a blob id (64 lowercase hex digits)",
             quote(id)
         )));
+    }
+    // Each texture is decoded once per job: the same id twice would decode (and hold) a copy per name.
+    let mut seen = std::collections::HashMap::with_capacity(r.texture_blobs.len());
+    for (i, id) in r.texture_blobs.iter().enumerate() {
+        if let Some(first) = seen.insert(id.as_str(), i) {
+            return Err(Status::invalid_argument(format!(
+                "texture_blobs[{i}]: blob {id} is named already at texture_blobs[{first}]; each texture once expected"
+            )));
+        }
     }
     Ok(())
 }
@@ -176,10 +188,29 @@ fn check_units(r: &pb::StripRequest, settings: &RenderSettings) -> Result<(), St
     Ok(())
 }
 
-/// Refuses a strip whose buffers would not fit the worker's strip memory (`limits`).
+/// Refuses a strip that asks for more than `limits.max_strip_work` path vertices: pixels × units ×
+/// `render.max_depth` (a bound on the bounces, not the work a scene will take, which roulette usually ends
+/// sooner).
+fn check_work(r: &pb::StripRequest, frame: &Frame, limits: &Limits) -> Result<(), Status> {
+    let pixels = u64::from(frame.camera.width) * u64::from(r.row_end - r.row_start);
+    let units = u64::from(r.unit_end.saturating_sub(r.unit_start));
+    let work = pixels.saturating_mul(units).saturating_mul(u64::from(frame.settings.max_depth.max(1)));
+    if work > limits.max_strip_work {
+        return Err(Status::invalid_argument(format!(
+            "the strip asks for {work} path vertices ({pixels} pixels × {units} units × render.max_depth {}), \
+             more than this worker's limit of {} (photon-worker --max-strip-work)",
+            frame.settings.max_depth, limits.max_strip_work
+        )));
+    }
+    Ok(())
+}
+
+/// Refuses a strip whose buffers would not fit the worker's strip memory (`limits`), the texture images it
+/// decodes (`limits.texture_bytes`: the named blobs' sizes, each once) included.
 fn check_memory(r: &pb::StripRequest, frame: &Frame, limits: &Limits) -> Result<(), Status> {
     let (width, height, rows) = (frame.camera.width, frame.camera.height, r.row_end - r.row_start);
     let mut estimate = MemoryEstimate::strip(width, rows, &frame.settings, limits.threads);
+    estimate.textures = limits.texture_bytes;
     // A pass of vcm, bdpt or lt traces the light subpaths of the whole image, whatever rows it renders.
     estimate.light_paths = MemoryEstimate::light_paths(width, height, &frame.settings);
     if r.trace_photons {
@@ -238,7 +269,13 @@ impl JobCache {
 
     /// The job of an order: from the cache, or decoded from its blobs (with its photon maps traced here when
     /// the order says so) on `pool`; what that cost is kept in [`Job::unreported`].
-    fn get_or_make(&self, order: &StripOrder, pool: &rayon::ThreadPool, blobs: &BlobCache) -> Result<Arc<Job>, Status> {
+    fn get_or_make(
+        &self,
+        order: &StripOrder,
+        pool: &rayon::ThreadPool,
+        blobs: &BlobCache,
+        guard: &Guard,
+    ) -> Result<Arc<Job>, Status> {
         // A traced map and a received one are the same bits, but keep the jobs apart all the same.
         let photons = if order.trace_photons { "traced".to_owned() } else { order.photons_blob.clone() };
         let key = [order.scene_blob.clone(), photons, order.frame_id.clone(), order.texture_blobs.join(",")];
@@ -265,9 +302,10 @@ impl JobCache {
         if order.trace_photons {
             let t1 = Instant::now();
             // Deterministic streams: the same maps as the coordinator would have traced and shipped.
-            let maps = pool
-                .install(|| prep.build_photon_maps())
-                .map_err(|e| Status::invalid_argument(format!("the job's photon maps cannot be built: {e}")))?;
+            let maps = pool.install(|| prep.build_photon_maps(guard)).map_err(|e| match e {
+                PhotonMapError::Run(e) => run_status(e),
+                e => Status::invalid_argument(format!("the job's photon maps cannot be built: {e}")),
+            })?;
             load.photon_paths = prep.photon_map_paths();
             load.photon_seconds = t1.elapsed().as_secs_f64();
             prep.photons = Some(maps);
@@ -297,11 +335,25 @@ fn prepare(scene: &[u8], photons: Option<&[u8]>, textures: &[&[u8]], frame: &Fra
     Ok(prep)
 }
 
+/// The status of a run that stopped: its call ended (cancelled, dropped or past its deadline), or it would
+/// store more than this worker's memory allows (`FAILED_PRECONDITION`: the same strip fails the same way on
+/// this worker however often it is sent).
+fn run_status(e: RunError) -> Status {
+    match e {
+        RunError::Cancelled => Status::cancelled("the strip's call ended (the coordinator cancelled it or left)"),
+        RunError::Storage(e) => Status::failed_precondition(format!("this worker cannot render the strip: {e}")),
+    }
+}
+
 /// What a strip's blocking render needs from the worker.
 struct StripContext {
     pool: Arc<rayon::ThreadPool>,
     blobs: Arc<BlobCache>,
     jobs: Arc<JobCache>,
+    /// Set when the strip's call ends: the render stops soon after.
+    cancel: Arc<Cancel>,
+    /// Bytes one run's photons or light vertices may take ([`crate::Config::strip_memory_bytes`]).
+    storage_bytes: u64,
     #[cfg(feature = "fault-injection")]
     faults: Arc<crate::fault::Injector>,
 }
@@ -334,19 +386,18 @@ impl StripContext {
     /// Renders the strip, sending progress on `tx` as it goes; returns the sums and summary events.
     fn render(&self, order: &StripOrder, tx: &mpsc::Sender<EventOrStatus>) -> Result<Vec<EventOrStatus>, Status> {
         // The rows and units were checked against this frame by `check_strip_request` before the call started.
-        let job = self.jobs.get_or_make(order, &self.pool, &self.blobs)?;
+        let guard = Guard { cancel: &self.cancel, storage_bytes: self.storage_bytes };
+        let job = self.jobs.get_or_make(order, &self.pool, &self.blobs, &guard)?;
         tracing::info!(strip = order.strip, attempt = order.attempt, rows = ?order.rows, "rendering strip");
         #[cfg(feature = "fault-injection")]
         self.faults.before_render(order.strip, &|| tx.is_closed())?;
         let t0 = Instant::now();
         let progress = |units: u32| {
-            // A full channel only delays a progress report; a closed one means the coordinator left: stop.
+            // A full channel only delays a progress report (a closed one has set the cancel flag already).
             let _ = tx.try_send(Ok(pb::StripEvent { event: Some(Event::UnitsDone(units)) }));
-            !tx.is_closed()
         };
         let block = Block { rows: order.rows(), units: order.units() };
-        let block = self.pool.install(|| render_block(&job.prep, &block, &progress));
-        let block = block.ok_or_else(|| Status::cancelled("the coordinator cancelled the strip"))?;
+        let block = self.pool.install(|| render_block(&job.prep, &block, &progress, &guard)).map_err(run_status)?;
         let sums = block.sums;
         #[cfg(feature = "fault-injection")]
         let sums = self.faults.before_checksum(order.strip, sums);
@@ -398,7 +449,12 @@ impl Worker {
                 return Err(Status::not_found(format!("blob {id} is unknown here: upload it with PutBlob first")));
             }
         }
-        let order = check_strip_request(r, &self.limits())?;
+        // The texture images this strip decodes, each once (duplicate ids are refused by the check).
+        let mut texture_bytes = 0u64;
+        for id in r.texture_blobs.iter().collect::<std::collections::HashSet<_>>() {
+            texture_bytes = texture_bytes.saturating_add(self.blobs.get(id).map_or(0, |b| b.len() as u64));
+        }
+        let order = check_strip_request(r, &Limits { texture_bytes, ..self.limits() })?;
         if self.waiting.load(Ordering::Relaxed) >= self.config.max_queue {
             return Err(Status::resource_exhausted(format!(
                 "{} strips already queued here; send fewer at once",
@@ -407,10 +463,13 @@ impl Worker {
         }
         self.waiting.fetch_add(1, Ordering::Relaxed);
         let (tx, rx) = mpsc::channel(32);
+        let cancel = Arc::new(Cancel::new());
         let ctx = StripContext {
             pool: self.pool.clone(),
             blobs: self.blobs.clone(),
             jobs: self.jobs.clone(),
+            cancel: cancel.clone(),
+            storage_bytes: self.config.strip_memory_bytes,
             #[cfg(feature = "fault-injection")]
             faults: self.faults.clone(),
         };
@@ -418,14 +477,31 @@ impl Worker {
         let waiting = self.waiting.clone();
         tokio::spawn(async move {
             let _call = call;
-            let permit = slot.acquire_owned().await;
+            // A strip whose caller leaves (cancels, drops the call, or passes its deadline) while it waits gives
+            // up its place in the queue at once.
+            let permit = tokio::select! {
+                permit = slot.acquire_owned() => permit,
+                () = tx.closed() => {
+                    waiting.fetch_sub(1, Ordering::Relaxed);
+                    return;
+                }
+            };
             waiting.fetch_sub(1, Ordering::Relaxed);
             let Ok(_permit) = permit else { return };
             if tx.is_closed() {
                 return;
             }
+            // The render reads the flag before every sample, pixel and path: the slot is free soon after.
+            let watch = {
+                let tx = tx.clone();
+                tokio::spawn(async move {
+                    tx.closed().await;
+                    cancel.cancel();
+                })
+            };
             let render_tx = tx.clone();
             let outcome = tokio::task::spawn_blocking(move || ctx.render_guarded(&order, &render_tx)).await;
+            watch.abort();
             let events = match outcome {
                 Ok(Ok(events)) => events,
                 Ok(Err(status)) => vec![Err(status)],

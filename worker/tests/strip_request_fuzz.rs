@@ -76,7 +76,7 @@ fn mutate_bytes(rng: &mut Rng, mut b: Vec<u8>) -> Vec<u8> {
 fn strip_requests_are_checked_without_panic_or_over_budget_acceptance() {
     let cases: u64 = std::env::var("PHOTON_FUZZ_CASES").ok().and_then(|v| v.parse().ok()).unwrap_or(200_000);
     let (camera, settings) = base();
-    let limits = Limits { strip_memory_bytes: 1 << 30, threads: 64 };
+    let limits = Limits { strip_memory_bytes: 1 << 30, threads: 64, texture_bytes: 0, max_strip_work: u64::MAX };
     let id = photon_proto::blob_id(b"scene");
     let photons = photon_proto::blob_id(b"photons");
     let mut rng = Rng(15);

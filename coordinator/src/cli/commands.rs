@@ -284,10 +284,14 @@ pub struct Interrupted {
 
 /// Keeps the finished strips of a failed or interrupted render in the partial file beside the output, and prints
 /// the command that resumes it. A fatal failure is not resumable: no worker of this build can render that strip,
-/// so it is reported as a bug of `method`, with no partial file and no `--resume` hint.
+/// so it is reported with no partial file and no `--resume` hint: as the limit it names (a worker's memory,
+/// with the settings to change), or else as a bug of `method`.
 fn fail_keeping_partial(output: &Path, e: FarmError, method: Method) -> Result<()> {
-    if let FarmError::Fatal { workers, .. } = &e {
+    if let FarmError::Fatal { workers, reason } = &e {
         print_workers(workers);
+        if reason.contains(photon_core::run::STORAGE_CAPPED) {
+            bail!("{e}\nresuming would fail the same way: change the settings the message names");
+        }
         bail!(
             "{e}\nno worker of this build can render it with the method `{method}` (resuming would fail the same \
              way): this is a bug in photon; please report it with the scene and the command"

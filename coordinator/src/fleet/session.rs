@@ -501,7 +501,13 @@ impl StripError {
     /// Another attempt could succeed; `false` when the job itself cannot render (another worker would fail the
     /// same way).
     pub fn retryable(&self) -> bool {
-        !matches!(self, Self::Status { code: Code::InvalidArgument | Code::OutOfRange, .. } | Self::NotASum { .. })
+        // FAILED_PRECONDITION: the strip's photons or light vertices pass the worker's memory (the same strip
+        // fails the same way there, and on every worker of no more memory).
+        !matches!(
+            self,
+            Self::Status { code: Code::InvalidArgument | Code::OutOfRange | Code::FailedPrecondition, .. }
+                | Self::NotASum { .. }
+        )
     }
 
     /// The failure counts against the worker: it misbehaved, rather than being busy or cancelled, or the job
@@ -515,6 +521,7 @@ impl StripError {
                     | Code::Aborted
                     | Code::InvalidArgument
                     | Code::OutOfRange
+                    | Code::FailedPrecondition
                     | Code::ResourceExhausted
                     | Code::Cancelled
                     | Code::DeadlineExceeded
@@ -639,6 +646,7 @@ mod tests {
             (Code::Aborted, (true, true, false)),
             (Code::InvalidArgument, (false, false, false)),
             (Code::OutOfRange, (false, false, false)),
+            (Code::FailedPrecondition, (false, false, false)),
             (Code::ResourceExhausted, (false, true, false)),
             (Code::Cancelled, (false, true, false)),
             (Code::DeadlineExceeded, (false, true, false)),

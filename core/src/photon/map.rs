@@ -198,6 +198,9 @@ pub enum PhotonMapError {
     /// The kd-tree refused the photons.
     #[error("kd-tree construction failed: {0}")]
     Tree(String),
+    /// The tracing was cancelled, or its photons passed its storage bound.
+    #[error(transparent)]
+    Run(#[from] crate::run::RunError),
 }
 
 thread_local! {

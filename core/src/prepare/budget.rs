@@ -7,6 +7,7 @@
 //! each strip request ([`MemoryEstimate::strip`]) against its own.
 
 use crate::method::{PassStorage, StaticMaps};
+pub use crate::run::{gib, machine_memory};
 use crate::scene::RenderSettings;
 
 /// Bytes per pixel of an assembled image: the whole render's fixed-point sums (3 × i128 = 48), the f32 RGB
@@ -69,6 +70,9 @@ pub struct MemoryEstimate {
     pub pass_copy: u64,
     /// The k-nearest buffers of every render thread.
     pub k_nearest: u64,
+    /// The decoded texture images (about their blobs' size, each distinct image once); set by the caller that
+    /// knows the images ([`MemoryEstimate::strip`] leaves it 0).
+    pub textures: u64,
 }
 
 /// A job or strip that does not fit the memory it may use.
@@ -90,15 +94,6 @@ pub struct BudgetError {
     pub budget: u64,
     /// What would fit, in the setting's terms.
     pub fits: String,
-}
-
-/// `bytes` in GiB or MiB, for messages.
-pub fn gib(bytes: u64) -> String {
-    if bytes >= 1 << 30 {
-        format!("{:.1} GiB", bytes as f64 / (1u64 << 30) as f64)
-    } else {
-        format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
-    }
 }
 
 impl MemoryEstimate {
@@ -171,12 +166,13 @@ impl MemoryEstimate {
             } else {
                 0
             },
+            textures: 0,
         }
     }
 
     /// The sum of the parts.
     pub fn total(&self) -> u64 {
-        [self.image, self.photon_maps, self.pass_map, self.light_paths, self.pass_copy, self.k_nearest]
+        [self.image, self.photon_maps, self.pass_map, self.light_paths, self.pass_copy, self.k_nearest, self.textures]
             .iter()
             .fold(0u64, |a, &b| a.saturating_add(b))
     }
@@ -195,6 +191,7 @@ impl MemoryEstimate {
             (self.light_paths, Part::LightPaths),
             (self.pass_copy, Part::PassCopy),
             (self.k_nearest, Part::KNearest),
+            (self.textures, Part::Textures),
         ];
         let (part, largest) = parts.iter().copied().max_by_key(|p| p.0).unwrap_or(parts[0]);
         // The share of the budget the largest part may have, the others staying as they are.
@@ -218,6 +215,7 @@ enum Part {
     LightPaths,
     PassCopy,
     KNearest,
+    Textures,
 }
 
 impl Part {
@@ -229,6 +227,7 @@ impl Part {
             Part::LightPaths => "camera.width × camera.height",
             Part::PassCopy => "camera.width",
             Part::KNearest => "render.photons.k",
+            Part::Textures => "the scene's texture images",
         }
     }
 
@@ -240,6 +239,7 @@ impl Part {
             Part::LightPaths => "a pass's light subpaths",
             Part::PassCopy => "a pass's sums",
             Part::KNearest => "k-nearest buffers",
+            Part::Textures => "texture images",
         }
     }
 
@@ -260,21 +260,13 @@ impl Part {
             Part::PassMap => format!("about {} photon paths per pass would fit", times(settings.photons.pass_photons)),
             Part::PassCopy => format!("an image about {} pixels wide would fit", times(width)),
             Part::KNearest => format!("k = {} would fit", times(settings.photons.k)),
+            Part::Textures => format!("textures of {:.0} % of their size would fit", 100.0 * scale),
         }
     }
 }
 
 fn pixels(width: u32, rows: u32) -> u64 {
     u64::from(width) * u64::from(rows)
-}
-
-/// The machine's physical memory in bytes, from `/proc/meminfo` (`MemTotal`); `None` where it cannot be read.
-pub fn machine_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    text.lines()
-        .find_map(|l| l.strip_prefix("MemTotal:"))
-        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-        .map(|kib| kib * 1024)
 }
 
 #[cfg(test)]

@@ -25,6 +25,8 @@ use crate::math::rng::Sampler;
 use crate::medium::HenyeyGreenstein;
 use crate::method::StaticMaps;
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
+use crate::prepare::budget::BYTES_PER_PHOTON;
+use crate::run::{Cancel, Guard, Meter, NEVER, RunError};
 use crate::scene::SceneError;
 use rayon::prelude::*;
 
@@ -89,8 +91,28 @@ pub fn paths_per_light(prep: &Prepared, n: u64) -> Vec<u64> {
     counts
 }
 
-/// Traces `n` photon paths of pass `pass` and keeps the photons of `kind`.
+/// Traces `n` photon paths of pass `pass` and keeps the photons of `kind`, with no bound on their storage and
+/// no way to cancel: for runs of known size (tests, benchmarks, a sample of paths). The farm's runs go through
+/// [`trace_photons_guarded`].
 pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Traced {
+    let unbounded = Guard::unbounded();
+    let meter = unbounded.meter("photon", "render.photons.global", prep.settings.max_depth);
+    // Neither cancelled nor bounded: it cannot fail.
+    trace_photons_guarded(prep, n, pass, kind, &NEVER, &meter).unwrap_or_default()
+}
+
+/// [`trace_photons`], stopping when `cancel` is set ([`RunError::Cancelled`], checked before every path) or when
+/// the photons stored, [`BYTES_PER_PHOTON`] each, pass `meter`'s bound ([`RunError::Storage`], checked after
+/// every path). The storage is one count over all paths, so the run fails on it exactly when all its paths
+/// together would store more, whatever the threads.
+pub fn trace_photons_guarded(
+    prep: &Prepared,
+    n: u64,
+    pass: u64,
+    kind: PhotonKind,
+    cancel: &Cancel,
+    meter: &Meter,
+) -> Result<Traced, RunError> {
     let counts = paths_per_light(prep, n);
     let total: u64 = counts.iter().sum();
     // Light of path i: by ranges of the path index.
@@ -107,17 +129,23 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
             let mut volume = Vec::new();
             let mut emitted = [0.0f64; 3];
             for i in c * CHUNK..((c + 1) * CHUNK).min(total) {
+                cancel.check()?;
+                if meter.over() {
+                    return Err(meter.error());
+                }
                 let l = starts.partition_point(|&s| s <= i) - 1;
                 let phi = prep.lights.lights[l].power() / counts[l] as f32;
                 for (e, v) in emitted.iter_mut().zip(phi.to_array()) {
                     *e += f64::from(v);
                 }
                 let mut s = Sampler::for_light_path(prep.settings.seed, pass, l as u64, i - starts[l]);
+                let before = out.len() + volume.len();
                 trace_path(prep, l, phi, &mut s, kind, &mut out, &mut volume);
+                meter.add((out.len() + volume.len() - before) as u64 * BYTES_PER_PHOTON)?;
             }
-            (out, volume, emitted)
+            Ok((out, volume, emitted))
         })
-        .collect();
+        .collect::<Result<_, RunError>>()?;
     let mut traced = Traced { paths: total, ..Default::default() };
     for (photons, volume, e) in chunks {
         traced.photons.extend(photons);
@@ -126,7 +154,7 @@ pub fn trace_photons(prep: &Prepared, n: u64, pass: u64, kind: PhotonKind) -> Tr
             *t += v;
         }
     }
-    traced
+    Ok(traced)
 }
 
 /// Emits one photon from light `light` (an index into the light set) with power `phi` and follows it, appending
@@ -264,17 +292,22 @@ impl Prepared {
     /// and for progressive photon mapping, which traces its own photons pass by pass). `scene_path` names the
     /// scene in errors.
     ///
+    /// The maps are traced under this machine's guard ([`Guard::machine`]): their photons may take up to half
+    /// its memory.
+    ///
     /// # Errors
-    /// [`SceneError::Photons`] when a map cannot be built (a stored photon that is not finite).
+    /// [`SceneError::Photons`] when a map cannot be built (a stored photon that is not finite, or more photons
+    /// than the guard allows).
     pub fn with_photon_maps(mut self, scene_path: &std::path::Path) -> Result<Self, SceneError> {
-        self.photons =
-            self.photon_maps_if_needed().map_err(|source| SceneError::Photons { path: scene_path.into(), source })?;
+        self.photons = self
+            .photon_maps_if_needed(&Guard::machine(&NEVER))
+            .map_err(|source| SceneError::Photons { path: scene_path.into(), source })?;
         Ok(self)
     }
 
-    /// The photon maps the method needs, or `None` when it needs none.
-    pub fn photon_maps_if_needed(&self) -> Result<Option<PhotonMaps>, PhotonMapError> {
-        if self.settings.integrator.needs_photon_maps() { self.build_photon_maps().map(Some) } else { Ok(None) }
+    /// The photon maps the method needs, or `None` when it needs none ([`Prepared::build_photon_maps`]).
+    pub fn photon_maps_if_needed(&self, guard: &Guard) -> Result<Option<PhotonMaps>, PhotonMapError> {
+        if self.settings.integrator.needs_photon_maps() { self.build_photon_maps(guard).map(Some) } else { Ok(None) }
     }
 
     /// Whether the method reads a caustic map: `final-gather` on a scene with a mirror or glass.
@@ -292,10 +325,20 @@ impl Prepared {
     }
 
     /// Traces and builds the photon maps of the method: the global map, and the caustic map for
-    /// `final-gather` when some material has a delta (mirror or glass) component.
-    pub fn build_photon_maps(&self) -> Result<PhotonMaps, PhotonMapError> {
+    /// `final-gather` when some material has a delta (mirror or glass) component. Both maps' photons count
+    /// against one bound, `guard.storage_bytes`, and the tracing stops when `guard.cancel` is set.
+    ///
+    /// # Errors
+    /// [`PhotonMapError::Run`] when cancelled or over the storage bound; the others when a map cannot be built.
+    pub fn build_photon_maps(&self, guard: &Guard) -> Result<PhotonMaps, PhotonMapError> {
         let ph = &self.settings.photons;
-        let global = trace_photons(self, u64::from(ph.global), 0, PhotonKind::Global);
+        let setting = if self.needs_caustic_map() {
+            "render.photons.global or render.photons.caustic"
+        } else {
+            "render.photons.global"
+        };
+        let meter = guard.meter("photon", setting, self.settings.max_depth);
+        let global = trace_photons_guarded(self, u64::from(ph.global), 0, PhotonKind::Global, guard.cancel, &meter)?;
         tracing::info!(
             paths = global.paths,
             photons = global.photons.len(),
@@ -306,7 +349,7 @@ impl Prepared {
         let global = PhotonMap::build(global.photons)?;
         let caustic = if self.needs_caustic_map() {
             // Pass index 1 keeps the caustic streams apart from the global ones.
-            let c = trace_photons(self, u64::from(ph.caustic), 1, PhotonKind::Caustic);
+            let c = trace_photons_guarded(self, u64::from(ph.caustic), 1, PhotonKind::Caustic, guard.cancel, &meter)?;
             tracing::info!(paths = c.paths, photons = c.photons.len(), "caustic photon map traced");
             Some(PhotonMap::build(c.photons)?)
         } else {
@@ -314,6 +357,7 @@ impl Prepared {
         };
         let estimator = self.estimator();
         let irradiance = if self.settings.integrator.static_maps() == StaticMaps::GlobalAndCaustic {
+            guard.cancel.check()?;
             let entries = precompute_irradiance(&global, &estimator, 4);
             Some(PhotonMap::build(entries)?)
         } else {

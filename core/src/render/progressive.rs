@@ -31,50 +31,62 @@ use crate::medium::Medium;
 use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux, volume_radiance};
 use crate::prepare::Prepared;
 use crate::prepare::budget::passes_at_once;
-use crate::prepare::photons::{PhotonKind, trace_photons, volume_map};
+use crate::prepare::photons::{PhotonKind, trace_photons_guarded, volume_map};
+use crate::run::{Cancel, Guard, Meter, RunError};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::time::Instant;
 
 /// Renders progressive photon mapping's passes `passes` over rows `rows`: each pixel channel's sum over those
-/// passes of its fixed-point estimate. `progress` gets the passes finished so far and returns `false` to cancel
-/// (then `None`).
+/// passes of its fixed-point estimate. `progress` gets the passes finished so far; `guard` stops the render
+/// (checked before every photon path and every pixel) and bounds each pass's photons.
 ///
 /// Several passes trace their photons and build their maps side by side (as many as the threads, within a
-/// memory bound), and each pass's gather then runs over the rows in parallel.
+/// memory bound), and each pass's gather then runs over the rows in parallel. The passes traced side by side
+/// share the storage bound; when together they pass it, they are traced again one at a time, so that a pass
+/// fails on its storage only when it alone passes the bound, whatever the threads.
 pub(super) fn render_passes(
     prep: &Prepared,
     rows: Range<u32>,
     passes: Range<u32>,
-    progress: &(dyn Fn(u32) -> bool + Sync),
-) -> Option<BlockSums> {
+    progress: &(dyn Fn(u32) + Sync),
+    guard: &Guard,
+) -> Result<BlockSums, RunError> {
     let ph = &prep.settings.photons;
     let width = prep.camera.width as usize;
     let mut sums = vec![0i64; 3 * width * rows.len()];
     let (mut rays, mut photon_paths, mut photon_seconds) = (0u64, 0u64, 0.0f64);
     // How many passes trace side by side changes the speed and the memory, never a pixel.
-    let group = passes_at_once(ph.pass_photons, rayon::current_num_threads());
+    let mut group = passes_at_once(ph.pass_photons, rayon::current_num_threads());
     let mut done = 0u32;
     let mut radius = RadiusSequence::at(prep.photon_radius(), ph.alpha, passes.start);
     let mut start = passes.start;
     while start < passes.end {
         let end = start.saturating_add(group).min(passes.end);
         let t0 = Instant::now();
-        let maps: Vec<PassMaps> = (start..end).into_par_iter().map(|p| pass_map(prep, p)).collect();
+        let meter = guard.meter("photon", "render.photons.pass_photons", prep.settings.max_depth);
+        let maps: Result<Vec<PassMaps>, RunError> =
+            (start..end).into_par_iter().map(|p| pass_map(prep, p, guard.cancel, &meter)).collect();
         photon_seconds += t0.elapsed().as_secs_f64();
+        let maps = match maps {
+            Ok(maps) => maps,
+            Err(RunError::Storage(_)) if group > 1 => {
+                group = 1;
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         for (pass, maps) in (start..end).zip(maps) {
             photon_paths += maps.paths;
             debug_assert_eq!(radius.pass, pass);
-            rays += render_pass(prep, &rows, pass, radius.r2(), &maps, &mut sums);
+            rays += render_pass(prep, &rows, pass, radius.r2(), &maps, &mut sums, guard.cancel)?;
             radius = radius.next();
             done += 1;
-            if !progress(done) {
-                return None;
-            }
+            progress(done);
         }
         start = end;
     }
-    Some(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
+    Ok(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
 }
 
 /// The photon maps of one pass: surfaces, and media in a scene that has them.
@@ -84,19 +96,27 @@ struct PassMaps {
     paths: u64,
 }
 
-/// The photon maps of pass `pass` and the paths traced for it. A map that cannot be built (no photon was
-/// stored) contributes nothing.
-fn pass_map(prep: &Prepared, pass: u32) -> PassMaps {
+/// The photon maps of pass `pass` and the paths traced for it, its photons counted by `meter`. A map that
+/// cannot be built (no photon was stored) contributes nothing.
+fn pass_map(prep: &Prepared, pass: u32, cancel: &Cancel, meter: &Meter) -> Result<PassMaps, RunError> {
     let n = u64::from(prep.settings.photons.pass_photons);
-    let traced = trace_photons(prep, n, u64::from(pass) + 2, PhotonKind::Indirect);
+    let traced = trace_photons_guarded(prep, n, u64::from(pass) + 2, PhotonKind::Indirect, cancel, meter)?;
     let surface = PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok();
     let volume = volume_map(traced.volume).map_err(|e| tracing::warn!("pass {pass}, volume: {e}")).ok().flatten();
-    PassMaps { surface, volume, paths: traced.paths }
+    Ok(PassMaps { surface, volume, paths: traced.paths })
 }
 
 /// Adds pass `pass`'s fixed-point estimates of rows `rows`, gathered at squared radius `r2`, to `sums`; returns
-/// the rays traced.
-fn render_pass(prep: &Prepared, rows: &Range<u32>, pass: u32, r2: f32, maps: &PassMaps, sums: &mut [i64]) -> u64 {
+/// the rays traced; stops when `cancel` is set.
+fn render_pass(
+    prep: &Prepared,
+    rows: &Range<u32>,
+    pass: u32,
+    r2: f32,
+    maps: &PassMaps,
+    sums: &mut [i64],
+    cancel: &Cancel,
+) -> Result<u64, RunError> {
     let ph = &prep.settings.photons;
     let est = Estimator {
         gather: Gather::Radius { radius: r2.sqrt() },
@@ -113,8 +133,7 @@ fn render_pass(prep: &Prepared, rows: &Range<u32>, pass: u32, r2: f32, maps: &Pa
     let pixel = |x, y, px: &mut [i64], rays: &mut u64| {
         add_fixed(px, pixel_estimate(prep, maps.surface.as_ref(), volume, &est, r2, (x, y), pass, rays));
     };
-    // Every row runs: a pass is cancelled between passes, not within one.
-    for_each_pixel(width, rows, sums, &|| true, pixel).unwrap_or(0)
+    for_each_pixel(width, rows, sums, cancel, pixel)
 }
 
 /// Pass `pass`'s radiance estimate at pixel `xy`: emission and light sampling at the visible point, plus the

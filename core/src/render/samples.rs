@@ -16,69 +16,88 @@ use crate::math::Ray;
 use crate::math::rng::Sampler;
 use crate::method::CameraEstimator;
 use crate::prepare::Prepared;
+use crate::run::{Cancel, RunError};
 use glam::Vec2;
 use rayon::prelude::*;
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::atomic::{AtomicU32, Ordering};
 
 /// Runs `pixel(x, y, sums, rays)` on every pixel of rows `rows`, in parallel over rows: `sums` holds 3 values
-/// per pixel, row-major, and `pixel` adds (or writes) its pixel's three. `row_done` is called after each row and
-/// returns `false` to cancel the rows not yet started; then `None`. Returns the rays the pixels counted.
+/// per pixel, row-major, and `pixel` adds (or writes) its pixel's three.
+/// `cancel` is checked before every pixel (and `pixel` may check it more often); once it is set the pixels not
+/// yet started are skipped and the result is [`RunError::Cancelled`]. Returns the rays the pixels counted.
 pub(super) fn for_each_pixel<F>(
     width: usize,
     rows: &Range<u32>,
     sums: &mut [i64],
-    row_done: &(dyn Fn() -> bool + Sync),
+    cancel: &Cancel,
     pixel: F,
-) -> Option<u64>
+) -> Result<u64, RunError>
 where
     F: Fn(u32, u32, &mut [i64], &mut u64) + Sync,
 {
-    let cancelled = AtomicBool::new(false);
+    for_each_pixel_row(width, rows, sums, cancel, &|| (), pixel)
+}
+
+/// [`for_each_pixel`], calling `row_done` after each row.
+fn for_each_pixel_row<F>(
+    width: usize,
+    rows: &Range<u32>,
+    sums: &mut [i64],
+    cancel: &Cancel,
+    row_done: &(dyn Fn() + Sync),
+    pixel: F,
+) -> Result<u64, RunError>
+where
+    F: Fn(u32, u32, &mut [i64], &mut u64) + Sync,
+{
     let rays = sums
         .par_chunks_mut(3 * width)
         .zip(rows.clone().into_par_iter())
         .map(|(row, y)| {
-            if cancelled.load(Ordering::Relaxed) {
-                return 0;
-            }
             let mut rays = 0u64;
             for (x, px) in row.chunks_exact_mut(3).enumerate() {
+                if cancel.is_cancelled() {
+                    return 0;
+                }
                 pixel(x as u32, y, px, &mut rays);
             }
-            if !row_done() {
-                cancelled.store(true, Ordering::Relaxed);
-            }
+            row_done();
             rays
         })
         .sum();
-    (!cancelled.load(Ordering::Relaxed)).then_some(rays)
+    cancel.check()?;
+    Ok(rays)
 }
 
 /// Samples `samples` of every pixel of rows `rows` by `estimator`: each pixel channel's sum of their fixed-point
-/// values. `progress` gets the samples finished so far (rows done scaled to samples) and returns `false` to
-/// cancel (then `None`).
+/// values. `progress` gets the samples finished so far (rows done scaled to samples); `cancel` is checked
+/// before every sample.
 pub(super) fn render(
     prep: &Prepared,
     estimator: CameraEstimator,
     rows: Range<u32>,
     samples: Range<u32>,
-    progress: &(dyn Fn(u32) -> bool + Sync),
-) -> Option<BlockSums> {
+    progress: &(dyn Fn(u32) + Sync),
+    cancel: &Cancel,
+) -> Result<BlockSums, RunError> {
     let width = prep.camera.width as usize;
     let (n, rows_n) = (u64::from(samples.end.saturating_sub(samples.start)), rows.len().max(1) as u64);
     let done = AtomicU32::new(0);
     let row_done = || {
         let d = u64::from(done.fetch_add(1, Ordering::Relaxed) + 1);
-        progress((d * n / rows_n) as u32)
+        progress((d * n / rows_n) as u32);
     };
     let mut sums = vec![0i64; 3 * width * rows.len()];
-    let rays = for_each_pixel(width, &rows, &mut sums, &row_done, |x, y, px, rays| {
+    let rays = for_each_pixel_row(width, &rows, &mut sums, cancel, &row_done, |x, y, px, rays| {
         for i in samples.clone() {
+            if cancel.is_cancelled() {
+                return;
+            }
             add_fixed(px, pixel_sample(prep, estimator, x, y, i, rays));
         }
     })?;
-    Some(BlockSums { rows, units: samples, sums, rays, photon_paths: 0, photon_seconds: 0.0 })
+    Ok(BlockSums { rows, units: samples, sums, rays, photon_paths: 0, photon_seconds: 0.0 })
 }
 
 /// Sample `i` of pixel `(x, y)`: the radiance `estimator` returns along its camera ray.

@@ -57,6 +57,8 @@ use crate::math::{Ray, offset_ray_origin_by_error};
 use crate::method::Techniques;
 use crate::photon::Kernel;
 use crate::prepare::Prepared;
+use crate::prepare::budget::{LIGHT_VERTEX_BYTES, MERGE_TREE_BYTES_PER_VERTEX, SPLAT_BYTES};
+use crate::run::{Guard, RunError};
 use glam::Vec3A;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
@@ -226,22 +228,35 @@ impl LightPaths {
     }
 }
 
-/// Traces the `N` light subpaths of iteration `pass` (in parallel, in fixed chunks, concatenated in order).
-pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32) -> LightPaths {
+/// Traces the `N` light subpaths of iteration `pass` (in parallel, in fixed chunks, concatenated in order),
+/// stopping when `guard.cancel` is set (checked before every subpath) or when what they store (each vertex
+/// and splat twice, in its chunk and joined, and each vertex's share of the merge index) passes
+/// `guard.storage_bytes` (one count over all subpaths, so the outcome does not depend on the threads).
+pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Guard) -> Result<LightPaths, RunError> {
     // The count itself, not `it.light_paths` (an f32, inexact above 2²⁴ pixels).
     let n = prep.camera.width as usize * prep.camera.height as usize;
+    let meter = guard.meter("light vertex", "camera.width × camera.height", prep.settings.max_depth);
+    let tree = if it.techniques.merge { MERGE_TREE_BYTES_PER_VERTEX } else { 0 };
+    let (vertex_bytes, splat_bytes) = (2 * LIGHT_VERTEX_BYTES + tree, 2 * SPLAT_BYTES);
     let chunks: Vec<LightChunk> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
             let (mut vertices, mut ends, mut splats, mut rays) = (Vec::new(), Vec::new(), Vec::new(), 0u64);
             for j in c * CHUNK..((c + 1) * CHUNK).min(n) {
+                guard.cancel.check()?;
+                if meter.over() {
+                    return Err(meter.error());
+                }
+                let (v0, s0) = (vertices.len(), splats.len());
                 let mut s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
                 light_subpath(prep, it, &mut s, &mut vertices, &mut splats, &mut rays);
                 ends.push(vertices.len() as u32);
+                let (dv, ds) = ((vertices.len() - v0) as u64, (splats.len() - s0) as u64);
+                meter.add(dv * vertex_bytes + ds * splat_bytes + 8)?;
             }
-            (vertices, ends, splats, rays)
+            Ok((vertices, ends, splats, rays))
         })
-        .collect();
+        .collect::<Result<_, RunError>>()?;
     let mut out = LightPaths { vertices: Vec::new(), ends: Vec::with_capacity(n), splats: Vec::new(), rays: 0 };
     for (vertices, ends, splats, rays) in chunks {
         let base = out.vertices.len() as u32;
@@ -250,7 +265,7 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32) -> LightPat
         out.splats.extend(splats);
         out.rays += rays;
     }
-    out
+    Ok(out)
 }
 
 /// Emission of a light subpath: the first ray, the throughput, and the MIS quantities before the first hit
@@ -685,15 +700,16 @@ pub mod weights {
 
 /// Renders iterations `passes` of `vcm`, `bdpt` or `lt` over rows `rows`: each pixel channel's sum over those
 /// iterations of its fixed-point estimate (see the module docs). Every iteration traces all `N` light
-/// subpaths, whatever the rows. `progress` gets the iterations finished so far and returns `false` to cancel
-/// (then `None`).
+/// subpaths, whatever the rows. `progress` gets the iterations finished so far; `guard` stops the render
+/// (before every light subpath and pixel) and bounds what one iteration's light subpaths store.
 pub(super) fn render_passes(
     prep: &Prepared,
     techniques: Techniques,
     rows: Range<u32>,
     passes: Range<u32>,
-    progress: &(dyn Fn(u32) -> bool + Sync),
-) -> Option<BlockSums> {
+    progress: &(dyn Fn(u32) + Sync),
+    guard: &Guard,
+) -> Result<BlockSums, RunError> {
     let ph = &prep.settings.photons;
     let camera = &prep.camera;
     let width = camera.width as usize;
@@ -706,7 +722,7 @@ pub(super) fn render_passes(
         let it = Iteration::new(techniques, light_paths, radius.r2(), ph.kernel, prep.settings.max_depth);
         radius = radius.next();
         let t0 = Instant::now();
-        let paths = trace_light_paths(prep, &it, pass);
+        let paths = trace_light_paths(prep, &it, pass, guard)?;
         let tree = if techniques.merge { merge_tree(&paths.vertices) } else { None };
         if techniques.merge && tree.is_none() && !paths.vertices.is_empty() {
             tracing::warn!("pass {pass}: the light vertices could not be indexed; this pass merges nothing");
@@ -721,8 +737,7 @@ pub(super) fn render_passes(
                 *s = to_fixed(v);
             }
         };
-        // Every row runs: an iteration is cancelled between iterations, not within one.
-        rays += for_each_pixel(width, &rows, &mut pass_sums, &|| true, pixel).unwrap_or(0);
+        rays += for_each_pixel(width, &rows, &mut pass_sums, guard.cancel, pixel)?;
         for &(pixel, c) in &paths.splats {
             let y = pixel / camera.width;
             if !rows.contains(&y) {
@@ -736,9 +751,7 @@ pub(super) fn render_passes(
         for (s, p) in sums.iter_mut().zip(&pass_sums) {
             *s = s.saturating_add((*p).clamp(0, MAX_UNIT_SUM));
         }
-        if !progress(done as u32 + 1) {
-            return None;
-        }
+        progress(done as u32 + 1);
     }
-    Some(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
+    Ok(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
 }
