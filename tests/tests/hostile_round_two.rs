@@ -215,7 +215,8 @@ async fn idle_sockets_are_dropped_and_a_coordinator_still_connects() {
     let w = WorkerProcess::start(&["--max-connections", "64", "--handshake-timeout-s", "2"]);
     let wanted = 2000;
     let n = open_file_limit().map_or(wanted, |l| wanted.min(l.saturating_sub(100)));
-    assert!(n >= 1000, "this process may open only {n} files");
+    // 2000 where the open-file limit allows (here and in CI); never fewer than 8 times the worker's cap.
+    assert!(n >= 512, "this process may open only {n} files");
     let mut idle = Vec::with_capacity(n);
     for _ in 0..n {
         match tokio::time::timeout(Duration::from_secs(2), tokio::net::TcpStream::connect(&w.addr)).await {
@@ -225,7 +226,7 @@ async fn idle_sockets_are_dropped_and_a_coordinator_still_connects() {
         }
     }
     eprintln!("{} idle sockets open", idle.len());
-    assert!(idle.len() >= 1000, "only {} sockets connected", idle.len());
+    assert!(idle.len() >= 512, "only {} sockets connected", idle.len());
     let t0 = Instant::now();
     let mut c = client(&w).await;
     c.hello(hello()).await.unwrap();
