@@ -59,8 +59,7 @@ impl<'a> Guard<'a> {
     /// The guard of a run on this machine: storage up to half its physical memory (all of it where the
     /// memory cannot be read), as a worker's default strip budget.
     pub fn machine(cancel: &'a Cancel) -> Self {
-        let memory = machine_memory().unwrap_or(0);
-        Self { cancel, storage_bytes: if memory == 0 { u64::MAX } else { memory / 2 } }
+        Self { cancel, storage_bytes: half_the_memory() }
     }
 
     /// A meter for one tracing run of `what` (its storage, for messages), bounded by [`Guard::storage_bytes`].
@@ -86,9 +85,10 @@ impl Meter {
         if before.saturating_add(bytes) > self.bound { Err(self.error()) } else { Ok(()) }
     }
 
-    /// Whether the run has passed its bound already (another thread's path did): the others stop too.
-    pub fn over(&self) -> bool {
-        self.used.load(Ordering::Relaxed) > self.bound
+    /// [`RunError::Storage`] once the run has passed its bound (another thread's path did), so the others
+    /// stop too.
+    pub fn check(&self) -> Result<(), RunError> {
+        if self.used.load(Ordering::Relaxed) > self.bound { Err(self.error()) } else { Ok(()) }
     }
 
     /// The error of a run over its bound.
@@ -122,9 +122,10 @@ pub enum RunError {
 /// several times the usual few per path that the memory estimate assumes.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "{what} storage capped at {}: the paths store more (they may bounce up to render.max_depth = {max_depth} \
+    "{what} {capped} {}: the paths store more (they may bounce up to render.max_depth = {max_depth} \
      times); lower render.max_depth or {setting}, or give the run more memory (photon-worker --strip-memory-mib)",
-    gib(*bound)
+    gib(*bound),
+    capped = STORAGE_CAPPED
 )]
 pub struct StorageError {
     /// What is stored, e.g. `photon`.
@@ -144,6 +145,12 @@ pub fn gib(bytes: u64) -> String {
     } else {
         format!("{:.1} MiB", bytes as f64 / (1u64 << 20) as f64)
     }
+}
+
+/// Half this machine's physical memory in bytes (`u64::MAX` where it cannot be read): the memory one run, or
+/// one strip on a worker, may take by default.
+pub fn half_the_memory() -> u64 {
+    machine_memory().map_or(u64::MAX, |m| if m == 0 { u64::MAX } else { m / 2 })
 }
 
 /// The machine's physical memory in bytes, from `/proc/meminfo` (`MemTotal`); `None` where it cannot be read.
@@ -166,11 +173,11 @@ mod tests {
         let guard = Guard { cancel: &cancel, storage_bytes: 1000 };
         let within = guard.meter("photon", "render.photons.global", 16);
         assert!((0..100u64).into_par_iter().all(|_| within.add(10).is_ok()));
-        assert!(!within.over());
+        assert_eq!(within.check(), Ok(()));
         let over = guard.meter("photon", "render.photons.global", 16);
         let failed = (0..101u64).into_par_iter().filter(|_| over.add(10).is_err()).count();
         assert_eq!(failed, 1, "exactly the addition that passes the bound fails");
-        assert!(over.over());
+        assert_eq!(over.check(), Err(over.error()));
         let msg = over.error().to_string();
         assert!(msg.contains("render.max_depth = 16") && msg.contains("render.photons.global"), "{msg}");
     }

@@ -74,7 +74,7 @@ async fn finish(stream: &mut tonic::Streaming<pb::StripEvent>) -> Result<usize, 
     Ok(bytes)
 }
 
-/// Starts a strip and waits until the worker is rendering it (its first progress event, or `wait` at most).
+/// Starts a strip and gives the worker 0.8 s to be well into it (a small scene decodes in milliseconds).
 async fn started(c: &mut RenderClient<Channel>, req: pb::StripRequest) -> tonic::Streaming<pb::StripEvent> {
     let stream = c.render_strip(req).await.unwrap().into_inner();
     tokio::time::sleep(Duration::from_millis(800)).await;

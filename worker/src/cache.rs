@@ -53,6 +53,15 @@ impl BlobCache {
         self.memory().blobs.contains_key(id) || self.disk.as_ref().is_some_and(|d| d.contains(&file_name(id)))
     }
 
+    /// The blob's size in bytes, from memory or from its file on disk (which is not read); `None` when it is
+    /// not held.
+    pub fn size(&self, id: &str) -> Option<u64> {
+        if let Some((blob, _)) = self.memory().blobs.get(id) {
+            return Some(blob.len() as u64);
+        }
+        self.disk.as_ref()?.len(&file_name(id))
+    }
+
     /// The blob, from memory or (checked again) from disk.
     pub fn get(&self, id: &str) -> Option<Arc<Vec<u8>>> {
         {
@@ -145,7 +154,11 @@ mod tests {
         BlobCache::new(1 << 20, Some((dir.clone(), 1 << 20))).unwrap().insert(a.clone(), ba.clone());
         let again = BlobCache::new(1 << 20, Some((dir.clone(), 1 << 20))).unwrap();
         assert!(again.contains(&a));
+        // Its size from the file alone, then from memory once read.
+        assert_eq!(again.size(&a), Some(1000));
         assert_eq!(again.get(&a).unwrap(), ba);
+        assert_eq!(again.size(&a), Some(1000));
+        assert_eq!(again.size(&blob(8, 10).0), None);
         // Damage the file: a fresh cache must refuse it and forget it.
         std::fs::write(dir.join(format!("{a}.blob")), b"not the blob").unwrap();
         let third = BlobCache::new(1 << 20, Some((dir.clone(), 1 << 20))).unwrap();

@@ -57,7 +57,6 @@ pub struct Config {
 
 impl Default for Config {
     fn default() -> Self {
-        let memory = memory_bytes();
         Self {
             threads: None,
             token: None,
@@ -68,7 +67,7 @@ impl Default for Config {
             upload_budget_bytes: 8 << 30,
             upload_idle: Duration::from_secs(30),
             upload_min_rate: 256 << 10,
-            strip_memory_bytes: if memory == 0 { u64::MAX } else { memory / 2 },
+            strip_memory_bytes: photon_core::run::half_the_memory(),
             max_strip_work: DEFAULT_MAX_STRIP_WORK,
             handshake_timeout: Duration::from_secs(10),
             max_connections: 512,
@@ -93,7 +92,8 @@ pub struct Limits {
     pub strip_memory_bytes: u64,
     /// The worker's render threads (each keeps its own k-nearest buffer).
     pub threads: usize,
-    /// Bytes of the texture images the request names: their blobs' sizes, each once (0 when it names none).
+    /// Bytes of the texture images the request names: their blobs' sizes (0 when it names none; a request that
+    /// names one twice is refused before its memory is checked).
     pub texture_bytes: u64,
     /// The most path vertices one strip may ask for ([`Config::max_strip_work`]).
     pub max_strip_work: u64,

@@ -78,6 +78,16 @@ impl DiskStore {
         self.path(name).is_file()
     }
 
+    /// The length of the bytes [`DiskStore::read`] would return for `name` (without its check), from the file's
+    /// size; `None` when there is no such file.
+    pub fn len(&self, name: &str) -> Option<u64> {
+        let len = std::fs::metadata(self.path(name)).ok().filter(|m| m.is_file())?.len();
+        Some(match self.integrity {
+            Integrity::NamedByHash => len,
+            Integrity::ChecksumHeader => len.saturating_sub(HEADER as u64),
+        })
+    }
+
     /// The bytes of `name`: `Ok(None)` when there is no such file (or it cannot be read), an error when it
     /// failed its check (it is deleted).
     pub fn read(&self, name: &str) -> Result<Option<Vec<u8>>, DiskStoreError> {

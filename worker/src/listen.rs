@@ -38,10 +38,15 @@ struct Registry {
 }
 
 impl Registry {
-    /// Closes the oldest connection still in its handshake; whether there was one.
+    /// Closes the oldest connection still in its handshake (skipping those that finished it); whether there
+    /// was one.
     fn evict_oldest(&mut self) -> bool {
-        self.in_handshake.retain(|s| !s.is_closed());
-        self.in_handshake.pop_front().is_some()
+        while let Some(evict) = self.in_handshake.pop_front() {
+            if !evict.is_closed() {
+                return true;
+            }
+        }
+        false
     }
 }
 
@@ -73,6 +78,7 @@ pub(crate) fn incoming(
             let _ = stream.set_nodelay(true);
             let closed = {
                 let mut r = lock(&registry);
+                // Forget the connections that finished their handshake, so the list stays as short as the cap.
                 r.in_handshake.retain(|s| !s.is_closed());
                 if r.open >= max_connections.max(1) && !r.evict_oldest() {
                     tracing::warn!(max_connections, "refusing a connection: all open ones are in use");

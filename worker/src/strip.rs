@@ -206,7 +206,7 @@ fn check_work(r: &pb::StripRequest, frame: &Frame, limits: &Limits) -> Result<()
 }
 
 /// Refuses a strip whose buffers would not fit the worker's strip memory (`limits`), the texture images it
-/// decodes (`limits.texture_bytes`: the named blobs' sizes, each once) included.
+/// decodes (`limits.texture_bytes`: the named blobs' sizes; a texture named twice is refused first) included.
 fn check_memory(r: &pb::StripRequest, frame: &Frame, limits: &Limits) -> Result<(), Status> {
     let (width, height, rows) = (frame.camera.width, frame.camera.height, r.row_end - r.row_start);
     let mut estimate = MemoryEstimate::strip(width, rows, &frame.settings, limits.threads);
@@ -449,11 +449,9 @@ impl Worker {
                 return Err(Status::not_found(format!("blob {id} is unknown here: upload it with PutBlob first")));
             }
         }
-        // The texture images this strip decodes, each once (duplicate ids are refused by the check).
-        let mut texture_bytes = 0u64;
-        for id in r.texture_blobs.iter().collect::<std::collections::HashSet<_>>() {
-            texture_bytes = texture_bytes.saturating_add(self.blobs.get(id).map_or(0, |b| b.len() as u64));
-        }
+        // The texture images this strip decodes, from their blobs' sizes (not read here); a request that names
+        // one twice is refused by the check before its memory is.
+        let texture_bytes = r.texture_blobs.iter().filter_map(|id| self.blobs.size(id)).fold(0u64, u64::saturating_add);
         let order = check_strip_request(r, &Limits { texture_bytes, ..self.limits() })?;
         if self.waiting.load(Ordering::Relaxed) >= self.config.max_queue {
             return Err(Status::resource_exhausted(format!(

@@ -130,9 +130,7 @@ pub fn trace_photons_guarded(
             let mut emitted = [0.0f64; 3];
             for i in c * CHUNK..((c + 1) * CHUNK).min(total) {
                 cancel.check()?;
-                if meter.over() {
-                    return Err(meter.error());
-                }
+                meter.check()?;
                 let l = starts.partition_point(|&s| s <= i) - 1;
                 let phi = prep.lights.lights[l].power() / counts[l] as f32;
                 for (e, v) in emitted.iter_mut().zip(phi.to_array()) {

@@ -244,9 +244,7 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
             let (mut vertices, mut ends, mut splats, mut rays) = (Vec::new(), Vec::new(), Vec::new(), 0u64);
             for j in c * CHUNK..((c + 1) * CHUNK).min(n) {
                 guard.cancel.check()?;
-                if meter.over() {
-                    return Err(meter.error());
-                }
+                meter.check()?;
                 let (v0, s0) = (vertices.len(), splats.len());
                 let mut s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
                 light_subpath(prep, it, &mut s, &mut vertices, &mut splats, &mut rays);
