@@ -140,7 +140,8 @@ fn main() {
     }
 }
 
-fn run(cli: Cli) -> Result<()> {
+/// Refuses option values out of their range, naming the option.
+fn check_options(cli: &Cli) -> Result<()> {
     if cli.threads == Some(0) {
         bail!("--threads must be at least 1");
     }
@@ -162,6 +163,11 @@ fn run(cli: Cli) -> Result<()> {
     if cli.strip_memory_mib == Some(0) || cli.max_strip_work == 0 {
         bail!("--strip-memory-mib and --max-strip-work must be at least 1");
     }
+    Ok(())
+}
+
+/// The worker's configuration from the options: the token file and TLS files read, sizes in bytes.
+fn config(cli: &Cli) -> Result<Config> {
     let token = cli.token_file.as_deref().map(photon_proto::read_token).transpose()?;
     let read =
         |p: &PathBuf, what: &str| std::fs::read(p).with_context(|| format!("reading the {what} {}", p.display()));
@@ -174,7 +180,7 @@ fn run(cli: Cli) -> Result<()> {
         token,
         tls,
         memory_cache_bytes: cli.cache_mib << 20,
-        disk_cache: cli.cache_dir.map(|d| (d, cli.cache_dir_mib << 20)),
+        disk_cache: cli.cache_dir.clone().map(|d| (d, cli.cache_dir_mib << 20)),
         max_blob_bytes: cli.max_blob_mib << 20,
         upload_budget_bytes: (2 * cli.max_blob_mib) << 20,
         upload_idle: std::time::Duration::from_secs_f64(cli.upload_idle_s),
@@ -188,16 +194,22 @@ fn run(cli: Cli) -> Result<()> {
     if let Some(mib) = cli.strip_memory_mib {
         config.strip_memory_bytes = mib.saturating_mul(1 << 20);
     }
-    if let Some(id) = cli.test_build_id {
-        config.build_id = id;
+    if let Some(id) = &cli.test_build_id {
+        config.build_id = id.clone();
     }
-    if let Some(mode) = cli.test_math_mode {
-        config.math_mode = mode;
+    if let Some(mode) = &cli.test_math_mode {
+        config.math_mode = mode.clone();
     }
     #[cfg(feature = "fault-injection")]
     {
         config.fault = cli.faults.fault();
     }
+    Ok(config)
+}
+
+fn run(cli: Cli) -> Result<()> {
+    check_options(&cli)?;
+    let config = config(&cli)?;
     let config_tls_off = config.tls.is_none();
     let worker = Worker::new(config)?;
     let threads = worker.threads();

@@ -137,44 +137,7 @@ pub fn parse_obj(
         }
         let world: Vec<Vec3> = positions.iter().map(|&p| world_from_object.transform_point3(p)).collect();
         // Each triangle as three positions in `m.indices` (which also index the normal and UV indices).
-        let mut tris: Vec<[usize; 3]> = Vec::new();
-        let arities: Vec<usize> = if m.face_arities.is_empty() {
-            vec![3; m.indices.len() / 3]
-        } else {
-            m.face_arities.iter().map(|&a| a as usize).collect()
-        };
-        let mut start = 0usize;
-        for arity in arities {
-            let line = face_lines.get(face_number).copied();
-            face_number += 1;
-            let corners = start..start + arity;
-            start += arity;
-            let mut polygon = Vec::with_capacity(arity);
-            for c in corners.clone() {
-                let ix = m.indices.get(c).copied().unwrap_or(u32::MAX) as usize;
-                let p = positions.get(ix).ok_or_else(|| malformed(line, "face index out of bounds".into()))?;
-                polygon.push(*p);
-            }
-            let clipped = triangulate(&polygon);
-            if clipped.non_planarity > NON_PLANAR_TOLERANCE {
-                tracing::warn!(
-                    "{}:{}: non-planar polygon of {arity} vertices (a vertex is {:.1e} of the polygon's size off \
-                     its plane): its triangles follow the ear clipping in its mean plane",
-                    file.display(),
-                    line.unwrap_or(0),
-                    clipped.non_planarity
-                );
-            }
-            if !clipped.simple {
-                tracing::warn!(
-                    "{}:{}: polygon of {arity} vertices is not simple (it self-intersects or is degenerate): \
-                     part of it is triangulated as a fan",
-                    file.display(),
-                    line.unwrap_or(0)
-                );
-            }
-            tris.extend(clipped.triangles.iter().map(|t| t.map(|k| corners.start + k)));
-        }
+        let tris = model_triangles(m, &positions, file, &face_lines, &mut face_number)?;
         // A mirroring transform (negative determinant) reverses the winding; swapping two corners keeps the
         // outside outside (it decides the normals computed below, and which way emission faces).
         let order: [usize; 3] = if world_from_object.matrix3.determinant() < 0.0 { [0, 2, 1] } else { [0, 1, 2] };
@@ -222,6 +185,59 @@ pub fn parse_obj(
         sh.uv_indices.splice(0..0, std::iter::repeat_n([zero; 3], missing));
     }
     Ok(out)
+}
+
+/// The triangles of one tobj model's faces, each as three corners of `m.indices` (which also index the normal
+/// and UV indices), every polygon ear-clipped in its mean plane. `face_lines` holds each face's line in the file;
+/// `face_number` counts the faces of the models before this one and moves past this one's. Warns, naming the
+/// line, of non-planar and non-simple polygons.
+fn model_triangles(
+    m: &tobj::Mesh,
+    positions: &[Vec3],
+    file: &Path,
+    face_lines: &[usize],
+    face_number: &mut usize,
+) -> Result<Vec<[usize; 3]>, MeshError> {
+    let malformed = |line: Option<usize>, message: String| MeshError::Malformed { file: file.into(), line, message };
+    let mut tris: Vec<[usize; 3]> = Vec::new();
+    let arities: Vec<usize> = if m.face_arities.is_empty() {
+        vec![3; m.indices.len() / 3]
+    } else {
+        m.face_arities.iter().map(|&a| a as usize).collect()
+    };
+    let mut start = 0usize;
+    for arity in arities {
+        let line = face_lines.get(*face_number).copied();
+        *face_number += 1;
+        let corners = start..start + arity;
+        start += arity;
+        let mut polygon = Vec::with_capacity(arity);
+        for c in corners.clone() {
+            let ix = m.indices.get(c).copied().unwrap_or(u32::MAX) as usize;
+            let p = positions.get(ix).ok_or_else(|| malformed(line, "face index out of bounds".into()))?;
+            polygon.push(*p);
+        }
+        let clipped = triangulate(&polygon);
+        if clipped.non_planarity > NON_PLANAR_TOLERANCE {
+            tracing::warn!(
+                "{}:{}: non-planar polygon of {arity} vertices (a vertex is {:.1e} of the polygon's size off its \
+                 plane): its triangles follow the ear clipping in its mean plane",
+                file.display(),
+                line.unwrap_or(0),
+                clipped.non_planarity
+            );
+        }
+        if !clipped.simple {
+            tracing::warn!(
+                "{}:{}: polygon of {arity} vertices is not simple (it self-intersects or is degenerate): part of \
+                 it is triangulated as a fan",
+                file.display(),
+                line.unwrap_or(0)
+            );
+        }
+        tris.extend(clipped.triangles.iter().map(|t| t.map(|k| corners.start + k)));
+    }
+    Ok(tris)
 }
 
 /// Smooth normals at the corners of `faces` (world space; `corners` gives each corner's position index, of

@@ -235,15 +235,6 @@ type GeometryParts = (Geometry, Vec<Emission>, Option<Vec<Boundary>>);
 fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts, SceneError> {
     let with_media = has_media(scene);
     let mut boundaries: Vec<Boundary> = Vec::new();
-    let names: Vec<&String> = scene.materials.keys().collect();
-    let material_index = |name: &str, field: String| -> Result<u32, SceneError> {
-        names.iter().position(|n| n.as_str() == name).map(|i| i as u32).ok_or_else(|| SceneError::Invalid {
-            path: scene_path.into(),
-            line: None,
-            field,
-            message: format!("no material named `{name}`"),
-        })
-    };
     let mut prims: Vec<Primitive> = Vec::new();
     let mut planes = Vec::new();
     let mut meshes = Vec::new();
@@ -252,7 +243,12 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
     let lods = lod::plan(scene);
     for (i, o) in scene.objects.iter().enumerate() {
         let object = i as u32;
-        let material = material_index(o.material(), format!("objects[{i}].material"))?;
+        let material = scene.materials.keys().position(|n| n == o.material()).ok_or_else(|| SceneError::Invalid {
+            path: scene_path.into(),
+            line: None,
+            field: format!("objects[{i}].material"),
+            message: format!("no material named `{}`", o.material()),
+        })? as u32;
         let mut push = |shape: Shape, emission: &Option<Emission>| {
             let light = match emission {
                 Some(e) if e.radiance.max_element() > 0.0 && shape.area() > 0.0 => {
@@ -299,53 +295,9 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
                 }
                 push(Shape::Triangle(tri), emission)
             }
-            Object::Mesh { file, transform, emission, smooth, crease_angle, lod, interior, .. } => {
-                let path = scene.base_dir.join(file);
-                let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
-                let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
-                let mesh =
-                    crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals, limit).map_err(|source| {
-                        SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source }
-                    })?;
-                if mesh.shading.uv_indices.is_empty()
-                    && let Some(m) = scene.materials.get(o.material())
-                    && m.needs_uv()
-                {
-                    return Err(SceneError::Invalid {
-                        path: scene_path.into(),
-                        line: None,
-                        field: format!("objects[{i}].file"),
-                        message: format!(
-                            "{} has no texture coordinates (`vt` lines), which material `{}` needs for its \
-                             textures",
-                            path.display(),
-                            o.material()
-                        ),
-                    });
-                }
-                let mesh = level_of_detail(mesh, lods.get(i).and_then(Option::as_ref), file, *lod);
-                if with_media {
-                    boundary = match (crate::medium::closed_mesh_orientation(&mesh.triangles), interior) {
-                        (Some(inward), interior) => Boundary::Closed {
-                            interior: interior.as_ref().map(MediumSpec::medium),
-                            exterior: None,
-                            inward,
-                        },
-                        (None, None) => Boundary::Open,
-                        (None, Some(_)) => {
-                            return Err(SceneError::Invalid {
-                                path: scene_path.into(),
-                                line: None,
-                                field: format!("objects[{i}].interior"),
-                                message: format!(
-                                    "{} is not a closed mesh (some edge is not shared by exactly two faces wound \
-                                     opposite ways), so it has no inside to fill with a medium",
-                                    path.display()
-                                ),
-                            });
-                        }
-                    };
-                }
+            Object::Mesh { emission, .. } => {
+                let (mesh, b) = mesh_object(scene, scene_path, i, lods.get(i).and_then(Option::as_ref), with_media)?;
+                boundary = b;
                 let mesh_index = meshes.len() as u32;
                 for (face, t) in mesh.triangles.iter().enumerate() {
                     let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };
@@ -362,6 +314,65 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
         }
     }
     Ok((Geometry::new(prims, planes, meshes), emitters, with_media.then_some(boundaries)))
+}
+
+/// Object `i`, a mesh: its triangles loaded from its file at the level of detail `plan` gives, and when the scene
+/// has media (`with_media`), the boundary it makes (closed when every edge is shared by two faces wound
+/// opposite ways). Another kind of object gives no triangles and an open boundary. Errors name the object's
+/// field: the file cannot be loaded, it lacks the texture coordinates its material needs, or it has an
+/// `interior` but no inside.
+fn mesh_object(
+    scene: &Scene,
+    scene_path: &std::path::Path,
+    i: usize,
+    plan: Option<&lod::MeshLod>,
+    with_media: bool,
+) -> Result<(crate::geometry::mesh::MeshData, Boundary), SceneError> {
+    let o = &scene.objects[i];
+    let Object::Mesh { file, transform, smooth, crease_angle, lod, interior, .. } = o else {
+        return Ok((crate::geometry::mesh::MeshData::default(), Boundary::Open));
+    };
+    let invalid = |field: &str, message: String| SceneError::Invalid {
+        path: scene_path.into(),
+        line: None,
+        field: format!("objects[{i}].{field}"),
+        message,
+    };
+    let path = scene.base_dir.join(file);
+    let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
+    let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
+    let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals, limit)
+        .map_err(|source| SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source })?;
+    if mesh.shading.uv_indices.is_empty()
+        && let Some(m) = scene.materials.get(o.material())
+        && m.needs_uv()
+    {
+        let message = format!(
+            "{} has no texture coordinates (`vt` lines), which material `{}` needs for its textures",
+            path.display(),
+            o.material()
+        );
+        return Err(invalid("file", message));
+    }
+    let mesh = level_of_detail(mesh, plan, file, *lod);
+    if !with_media {
+        return Ok((mesh, Boundary::Open));
+    }
+    let boundary = match (crate::medium::closed_mesh_orientation(&mesh.triangles), interior) {
+        (Some(inward), interior) => {
+            Boundary::Closed { interior: interior.as_ref().map(MediumSpec::medium), exterior: None, inward }
+        }
+        (None, None) => Boundary::Open,
+        (None, Some(_)) => {
+            let message = format!(
+                "{} is not a closed mesh (some edge is not shared by exactly two faces wound opposite ways), so \
+                 it has no inside to fill with a medium",
+                path.display()
+            );
+            return Err(invalid("interior", message));
+        }
+    };
+    Ok((mesh, boundary))
 }
 
 /// The mesh as the level-of-detail plan of its object says (simplified, or whole), with a line in the log.

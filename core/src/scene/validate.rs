@@ -2,7 +2,7 @@
 //! must exist), reported as a [`FieldError`] that names the field; `Scene::parse` adds the file and line.
 
 use super::limits::{MAX_CAMERA_COORDINATE, MAX_K, MAX_PASSES, image_side};
-use super::{LightSpec, Object, RenderSettings, Scene};
+use super::{LightSpec, Object, RenderSettings, Scene, Transform};
 use crate::error::FieldError;
 use crate::geometry::shapes::Rect;
 use glam::Vec3;
@@ -94,13 +94,8 @@ impl Scene {
                 for (k, v) in vertices.iter().enumerate() {
                     finite3(&f(&format!("vertices[{k}]")), *v)?;
                 }
-                for (k, c) in uv.iter().flatten().enumerate() {
-                    if !(c[0].is_finite() && c[1].is_finite()) {
-                        return Err(FieldError::new(
-                            f(&format!("uv[{k}]")),
-                            format!("expected finite numbers, got [{}, {}]", c[0], c[1]),
-                        ));
-                    }
+                if let Some(uv) = uv {
+                    finite_uvs(&f("uv"), uv)?;
                 }
                 // A triangle without area can never be hit: as a light it would silently emit nothing.
                 let [p0, p1, p2] = *vertices;
@@ -120,15 +115,7 @@ impl Scene {
                         format!("expected an angle in degrees from 0 to 180, found {crease_angle}"),
                     ));
                 }
-                finite3(&f("transform.translate"), transform.translate)?;
-                finite3(&f("transform.rotate"), transform.rotate)?;
-                let s = transform.scale.to_vec3();
-                if !s.is_finite() || s.x == 0.0 || s.y == 0.0 || s.z == 0.0 {
-                    return Err(FieldError::new(
-                        f("transform.scale"),
-                        format!("expected finite non-zero factors, found {s}"),
-                    ));
-                }
+                check_transform(&f("transform"), transform)?;
                 emission
             }
         };
@@ -285,6 +272,28 @@ fn coordinate3(field: &str, v: Vec3) -> Result<(), FieldError> {
             field,
             format!("expected coordinates within ±{MAX_CAMERA_COORDINATE:e} (the camera works in f32), found {v}"),
         ));
+    }
+    Ok(())
+}
+
+/// Every texture coordinate of `uv` finite; the error names `field[k]`.
+fn finite_uvs(field: &str, uv: &[[f32; 2]]) -> Result<(), FieldError> {
+    match uv.iter().enumerate().find(|(_, c)| !(c[0].is_finite() && c[1].is_finite())) {
+        Some((k, c)) => {
+            Err(FieldError::new(format!("{field}[{k}]"), format!("expected finite numbers, got [{}, {}]", c[0], c[1])))
+        }
+        None => Ok(()),
+    }
+}
+
+/// A transform's translation and rotation finite and its scale finite and non-zero on every axis; the error names
+/// `field.translate`, `field.rotate` or `field.scale`.
+fn check_transform(field: &str, t: &Transform) -> Result<(), FieldError> {
+    finite3(&format!("{field}.translate"), t.translate)?;
+    finite3(&format!("{field}.rotate"), t.rotate)?;
+    let s = t.scale.to_vec3();
+    if !s.is_finite() || s.x == 0.0 || s.y == 0.0 || s.z == 0.0 {
+        return Err(FieldError::new(format!("{field}.scale"), format!("expected finite non-zero factors, found {s}")));
     }
     Ok(())
 }
