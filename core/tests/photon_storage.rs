@@ -73,3 +73,43 @@ fn passes_and_light_subpaths_stop_at_their_bound() {
         assert!(render_block(&prep, &block, &|_| {}, &Guard::unbounded()).is_ok(), "{integrator}");
     }
 }
+
+/// The smallest storage bound under which `block` renders.
+fn least_bound(prep: &Prepared, block: &Block) -> u64 {
+    let (mut fails, mut fits) = (0u64, 1u64 << 32);
+    assert!(render_block(prep, block, &|_| {}, &guard(fits)).is_ok());
+    while fits - fails > 1 {
+        let mid = fails + (fits - fails) / 2;
+        match render_block(prep, block, &|_| {}, &guard(mid)) {
+            Ok(_) => fits = mid,
+            Err(RunError::Storage(_)) => fails = mid,
+            Err(e) => panic!("{e}"),
+        }
+    }
+    fits
+}
+
+#[test]
+fn a_block_fits_the_bound_its_largest_pass_fits_whatever_the_threads() {
+    // Passes are traced side by side and ahead of the gather; a block must still render under the bound that
+    // its largest pass alone needs, with the bits of an unbounded render, and fail one byte below it.
+    for integrator in [Method::Progressive, Method::Vcm] {
+        let prep = room(integrator);
+        let rows = 0..prep.camera.height;
+        let alone: Vec<u64> =
+            (0..3).map(|p| least_bound(&prep, &Block { rows: rows.clone(), units: p..p + 1 })).collect();
+        let largest = *alone.iter().max().unwrap();
+        let block = Block { rows: rows.clone(), units: 0..3 };
+        let unbounded = render_block(&prep, &block, &|_| {}, &Guard::unbounded()).unwrap();
+        for threads in [1, 2, 3] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            let fits = pool.install(|| render_block(&prep, &block, &|_| {}, &guard(largest)));
+            let fits = fits.unwrap_or_else(|e| panic!("{integrator}, {threads} threads, {alone:?}: {e}"));
+            assert_eq!(fits.sums, unbounded.sums, "{integrator}, {threads} threads");
+            let over = pool.install(|| render_block(&prep, &block, &|_| {}, &guard(largest - 1)));
+            assert!(matches!(over, Err(RunError::Storage(_))), "{integrator}, {threads} threads");
+        }
+        // Two passes side by side would not fit: the bound is below the sum of any two.
+        assert!(alone.iter().all(|&b| b + alone.iter().min().unwrap() > largest), "{alone:?}");
+    }
+}

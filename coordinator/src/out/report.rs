@@ -39,7 +39,7 @@ pub struct WorkerReport {
     pub failures: u32,
     /// Photon paths traced by its accepted results (progressive passes).
     pub photon_paths: u64,
-    /// Seconds it spent tracing those photons and building their maps.
+    /// Seconds it spent tracing those photons and building their maps (partly beside its gathering).
     pub photon_s: f64,
     /// Seconds it spent decoding the job's blobs (the scene, and photon maps when shipped).
     pub load_s: f64,

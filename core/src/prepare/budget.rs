@@ -27,6 +27,8 @@ pub const PASS_MAPS_AT_ONCE_BYTES: u64 = 1 << 29;
 
 /// How many progressive passes a worker traces side by side with `threads` threads: as many as the threads,
 /// while their maps (about 96 bytes per photon path) stay within [`PASS_MAPS_AT_ONCE_BYTES`], and at least one.
+/// The next group is traced while this one gathers, within what this group leaves of the run's storage bound
+/// ([`crate::run::Guard`]).
 /// For progressive photon mapping only: its passes hold `pass_photons` paths each, while vcm, bdpt and lt trace
 /// one pass at a time, one light subpath per pixel ([`MemoryEstimate::light_paths`]).
 pub fn passes_at_once(pass_photons: u32, threads: usize) -> u32 {
@@ -122,8 +124,10 @@ impl MemoryEstimate {
     }
 
     /// The bytes one pass of vcm, bdpt or lt holds for its light subpaths, one per pixel of a `width` × `height`
-    /// image (0 for the other methods). Passes run one at a time, and each traces the subpaths of the whole
-    /// image whatever rows it renders. Per subpath, [`PHOTONS_PER_PATH`] vertices: vcm and bdpt store each
+    /// image (0 for the other methods). Each pass traces the subpaths of the whole image whatever rows it
+    /// renders. The next pass's subpaths are traced while this pass's camera subpaths run, within what this
+    /// pass leaves of the run's storage bound ([`crate::run::Guard`]): the bound, not this estimate of one
+    /// pass, caps the two together. Per subpath, [`PHOTONS_PER_PATH`] vertices: vcm and bdpt store each
     /// vertex for the camera subpaths to connect to (vcm also indexes them for merging), and every vertex may
     /// leave a light-tracing splat; vertices and splats are gathered in parallel chunks and then joined, so
     /// they are counted twice. lt stores no vertex, only its splats.

@@ -30,7 +30,7 @@ use crate::math::rng::Sampler;
 use crate::medium::Medium;
 use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux, volume_radiance};
 use crate::prepare::Prepared;
-use crate::prepare::budget::passes_at_once;
+use crate::prepare::budget::{BYTES_PER_PHOTON, passes_at_once};
 use crate::prepare::photons::{PhotonKind, trace_photons_guarded, volume_map};
 use crate::run::{Cancel, Guard, Meter, RunError};
 use rayon::prelude::*;
@@ -42,9 +42,11 @@ use std::time::Instant;
 /// (checked before every photon path and every pixel) and bounds each pass's photons.
 ///
 /// Several passes trace their photons and build their maps side by side (as many as the threads, within a
-/// memory bound), and each pass's gather then runs over the rows in parallel. The passes traced side by side
-/// share the storage bound; when together they pass it, they are traced again one at a time, so that a pass
-/// fails on its storage only when it alone passes the bound, whatever the threads.
+/// memory bound), and each pass's gather then runs over the rows in parallel, while the next group of passes
+/// traces its photons: the tail of either keeps no core idle. The passes traced side by side share the
+/// storage bound, and a group traced ahead has what the group being gathered leaves of it. A group that does
+/// not fit is traced again without the other beside it, and then one pass at a time, so that a pass fails on
+/// its storage only when it alone passes the bound, whatever the threads.
 pub(super) fn render_passes(
     prep: &Prepared,
     rows: Range<u32>,
@@ -61,14 +63,15 @@ pub(super) fn render_passes(
     let mut done = 0u32;
     let mut radius = RadiusSequence::at(prep.photon_radius(), ph.alpha, passes.start);
     let mut start = passes.start;
+    let mut ahead: Option<TracedGroup> = None;
     while start < passes.end {
         let end = start.saturating_add(group).min(passes.end);
-        let t0 = Instant::now();
-        let meter = guard.meter("photon", "render.photons.pass_photons", prep.settings.max_depth);
-        let maps: Result<Vec<PassMaps>, RunError> =
-            (start..end).into_par_iter().map(|p| pass_map(prep, p, guard.cancel, &meter)).collect();
-        photon_seconds += t0.elapsed().as_secs_f64();
-        let maps = match maps {
+        let traced = match ahead.take() {
+            Some(traced) if traced.passes == (start..end) && traced.maps.is_ok() => traced,
+            _ => trace_group(prep, start..end, guard),
+        };
+        photon_seconds += traced.seconds;
+        let maps = match traced.maps {
             Ok(maps) => maps,
             Err(RunError::Storage(_)) if group > 1 => {
                 group = 1;
@@ -76,17 +79,42 @@ pub(super) fn render_passes(
             }
             Err(e) => return Err(e),
         };
-        for (pass, maps) in (start..end).zip(maps) {
-            photon_paths += maps.paths;
-            debug_assert_eq!(radius.pass, pass);
-            rays += render_pass(prep, &rows, pass, radius.r2(), &maps, &mut sums, guard.cancel)?;
-            radius = radius.next();
-            done += 1;
-            progress(done);
-        }
+        let used = maps.iter().map(|m| m.bytes).sum::<u64>();
+        let beside = Guard { cancel: guard.cancel, storage_bytes: guard.storage_bytes.saturating_sub(used) };
+        let next = end..end.saturating_add(group).min(passes.end);
+        let gather = || -> Result<(), RunError> {
+            for (pass, maps) in (start..end).zip(&maps) {
+                photon_paths += maps.paths;
+                debug_assert_eq!(radius.pass, pass);
+                rays += render_pass(prep, &rows, pass, radius.r2(), maps, &mut sums, guard.cancel)?;
+                radius = radius.next();
+                done += 1;
+                progress(done);
+            }
+            Ok(())
+        };
+        let (gathered, traced_ahead) =
+            rayon::join(gather, || (!next.is_empty()).then(|| trace_group(prep, next.clone(), &beside)));
+        gathered?;
+        ahead = traced_ahead;
         start = end;
     }
     Ok(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
+}
+
+/// The photon maps of a group of passes traced side by side, or why they could not be, and the seconds it took.
+struct TracedGroup {
+    passes: Range<u32>,
+    maps: Result<Vec<PassMaps>, RunError>,
+    seconds: f64,
+}
+
+/// Traces the photon maps of passes `passes` side by side, their photons counted against one bound, `guard`'s.
+fn trace_group(prep: &Prepared, passes: Range<u32>, guard: &Guard) -> TracedGroup {
+    let t0 = Instant::now();
+    let meter = guard.meter("photon", "render.photons.pass_photons", prep.settings.max_depth);
+    let maps = passes.clone().into_par_iter().map(|p| pass_map(prep, p, guard.cancel, &meter)).collect();
+    TracedGroup { passes, maps, seconds: t0.elapsed().as_secs_f64() }
 }
 
 /// The photon maps of one pass: surfaces, and media in a scene that has them.
@@ -94,6 +122,8 @@ struct PassMaps {
     surface: Option<PhotonMap>,
     volume: Option<PhotonMap>,
     paths: u64,
+    /// What the photons took of the storage bound, [`BYTES_PER_PHOTON`] each.
+    bytes: u64,
 }
 
 /// The photon maps of pass `pass` and the paths traced for it, its photons counted by `meter`. A map that
@@ -101,9 +131,10 @@ struct PassMaps {
 fn pass_map(prep: &Prepared, pass: u32, cancel: &Cancel, meter: &Meter) -> Result<PassMaps, RunError> {
     let n = u64::from(prep.settings.photons.pass_photons);
     let traced = trace_photons_guarded(prep, n, u64::from(pass) + 2, PhotonKind::Indirect, cancel, meter)?;
+    let bytes = (traced.photons.len() + traced.volume.len()) as u64 * BYTES_PER_PHOTON;
     let surface = PhotonMap::build(traced.photons).map_err(|e| tracing::warn!("pass {pass}: {e}")).ok();
     let volume = volume_map(traced.volume).map_err(|e| tracing::warn!("pass {pass}, volume: {e}")).ok().flatten();
-    Ok(PassMaps { surface, volume, paths: traced.paths })
+    Ok(PassMaps { surface, volume, paths: traced.paths, bytes })
 }
 
 /// Adds pass `pass`'s fixed-point estimates of rows `rows`, gathered at squared radius `r2`, to `sums`; returns

@@ -79,7 +79,8 @@ pub struct BlockSums {
     pub rays: u64,
     /// Photon paths (or light subpaths) traced for the block.
     pub photon_paths: u64,
-    /// Seconds spent tracing photons (or light subpaths) and building their maps (wall clock).
+    /// Seconds spent tracing photons (or light subpaths) and building their maps (wall clock; the passes traced
+    /// ahead overlap the gathering of the passes before them, so this may exceed the share of the block's time).
     pub photon_seconds: f64,
 }
 

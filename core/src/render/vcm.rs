@@ -236,8 +236,6 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
     // The count itself, not `it.light_paths` (an f32, inexact above 2²⁴ pixels).
     let n = prep.camera.width as usize * prep.camera.height as usize;
     let meter = guard.meter("light vertex", "camera.width × camera.height", prep.settings.max_depth);
-    let tree = if it.techniques.merge { MERGE_TREE_BYTES_PER_VERTEX } else { 0 };
-    let (vertex_bytes, splat_bytes) = (2 * LIGHT_VERTEX_BYTES + tree, 2 * SPLAT_BYTES);
     let chunks: Vec<LightChunk> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
@@ -250,7 +248,7 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
                 light_subpath(prep, it, &mut s, &mut vertices, &mut splats, &mut rays);
                 ends.push(vertices.len() as u32);
                 let (dv, ds) = ((vertices.len() - v0) as u64, (splats.len() - s0) as u64);
-                meter.add(dv * vertex_bytes + ds * splat_bytes + 8)?;
+                meter.add(stored_bytes(it, 1, dv, ds))?;
             }
             Ok((vertices, ends, splats, rays))
         })
@@ -264,6 +262,14 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
         out.rays += rays;
     }
     Ok(out)
+}
+
+/// Bytes that `subpaths` light subpaths with `vertices` vertices and `splats` splats in all store: each vertex
+/// and splat twice (in its chunk and joined), each vertex's share of the merge index when `it` merges, and
+/// each subpath's end.
+fn stored_bytes(it: &Iteration, subpaths: u64, vertices: u64, splats: u64) -> u64 {
+    let tree = if it.techniques.merge { MERGE_TREE_BYTES_PER_VERTEX } else { 0 };
+    vertices * (2 * LIGHT_VERTEX_BYTES + tree) + splats * 2 * SPLAT_BYTES + subpaths * 8
 }
 
 /// Emission of a light subpath: the first ray, the throughput, and the MIS quantities before the first hit
@@ -696,10 +702,16 @@ pub mod weights {
     }
 }
 
-/// Renders iterations `passes` of `vcm`, `bdpt` or `lt` over rows `rows`: each pixel channel's sum over those
+/// Renders vcm's (or bdpt's, or lt's) iterations `passes` over rows `rows`: each pixel channel's sum over those
 /// iterations of its fixed-point estimate (see the module docs). Every iteration traces all `N` light
 /// subpaths, whatever the rows. `progress` gets the iterations finished so far; `guard` stops the render
 /// (before every light subpath and pixel) and bounds what one iteration's light subpaths store.
+///
+/// The light subpaths of the next iteration are traced while the camera subpaths of this one run, so that the
+/// tail of either keeps no core idle. The two together stay within the storage bound: the next iteration is
+/// traced ahead within what this one leaves, and when it does not fit there it is traced again, alone, once
+/// this one is done. So an iteration fails on its storage only when it alone passes the bound, and its bits do
+/// not depend on which way it was traced.
 pub(super) fn render_passes(
     prep: &Prepared,
     techniques: Techniques,
@@ -710,46 +722,99 @@ pub(super) fn render_passes(
 ) -> Result<BlockSums, RunError> {
     let ph = &prep.settings.photons;
     let camera = &prep.camera;
-    let width = camera.width as usize;
     let light_paths = (camera.width as usize * camera.height as usize) as f32;
-    let mut sums = vec![0i64; 3 * width * rows.len()];
+    let mut sums = vec![0i64; 3 * camera.width as usize * rows.len()];
     let mut pass_sums = vec![0i64; sums.len()];
-    let (mut rays, mut photon_paths, mut photon_seconds) = (0u64, 0u64, 0.0f64);
+    let (mut rays, mut photon_seconds) = (0u64, 0.0f64);
     let mut radius = RadiusSequence::at(prep.merge_radius(), ph.alpha, passes.start);
-    for (done, pass) in passes.clone().enumerate() {
+    let mut iteration = || {
         let it = Iteration::new(techniques, light_paths, radius.r2(), ph.kernel, prep.settings.max_depth);
         radius = radius.next();
-        let t0 = Instant::now();
-        let paths = trace_light_paths(prep, &it, pass, guard)?;
-        let tree = if techniques.merge { merge_tree(&paths.vertices) } else { None };
-        if techniques.merge && tree.is_none() && !paths.vertices.is_empty() {
-            tracing::warn!("pass {pass}: the light vertices could not be indexed; this pass merges nothing");
-        }
-        photon_seconds += t0.elapsed().as_secs_f64();
-        photon_paths += u64::from(camera.width) * u64::from(camera.height);
-        rays += paths.rays;
-        let light = LightSide { paths: &paths, tree: tree.as_ref() };
-        let pixel = |x, y, px: &mut [i64], rays: &mut u64| {
-            let c = camera_subpath(prep, &it, &light, (x, y), pass, rays);
-            for (s, v) in px.iter_mut().zip(c.to_array()) {
-                *s = to_fixed(v);
-            }
+        it
+    };
+    let mut it = iteration();
+    let mut ahead: Option<Result<TracedIteration, RunError>> = None;
+    for (done, pass) in passes.clone().enumerate() {
+        let traced = match ahead.take() {
+            Some(Ok(traced)) => traced,
+            // It did not fit beside the last iteration: alone it has the whole bound.
+            None | Some(Err(RunError::Storage(_))) => trace_iteration(prep, &it, pass, guard)?,
+            Some(Err(e)) => return Err(e),
         };
-        rays += for_each_pixel(width, &rows, &mut pass_sums, guard.cancel, pixel)?;
-        for &(pixel, c) in &paths.splats {
-            let y = pixel / camera.width;
-            if !rows.contains(&y) {
-                continue;
-            }
-            let at = 3 * ((y - rows.start) as usize * width + (pixel % camera.width) as usize);
-            for (s, v) in pass_sums[at..at + 3].iter_mut().zip(c.to_array()) {
-                *s = s.saturating_add(to_fixed(v));
-            }
-        }
+        photon_seconds += traced.seconds;
+        rays += traced.paths.rays;
+        let next = (pass + 1 < passes.end).then(&mut iteration);
+        let beside = Guard { cancel: guard.cancel, storage_bytes: guard.storage_bytes.saturating_sub(traced.bytes) };
+        let (camera_rays, traced_ahead) = rayon::join(
+            || camera_pass(prep, &it, &traced, &rows, pass, &mut pass_sums, guard),
+            || next.as_ref().map(|next| trace_iteration(prep, next, pass + 1, &beside)),
+        );
+        rays += camera_rays?;
         for (s, p) in sums.iter_mut().zip(&pass_sums) {
             *s = s.saturating_add((*p).clamp(0, MAX_UNIT_SUM));
         }
         progress(done as u32 + 1);
+        ahead = traced_ahead;
+        if let Some(next) = next {
+            it = next;
+        }
     }
+    let photon_paths = u64::from(camera.width) * u64::from(camera.height) * u64::from(passes.end - passes.start);
     Ok(BlockSums { rows, units: passes, sums, rays, photon_paths, photon_seconds })
+}
+
+/// One iteration's light subpaths, their merge index, the bytes they store (as [`trace_light_paths`] counts
+/// them) and the seconds they took.
+struct TracedIteration {
+    paths: LightPaths,
+    tree: Option<Tree>,
+    bytes: u64,
+    seconds: f64,
+}
+
+/// Traces iteration `pass`'s light subpaths within `guard` ([`trace_light_paths`]) and indexes their vertices
+/// when `it` merges.
+fn trace_iteration(prep: &Prepared, it: &Iteration, pass: u32, guard: &Guard) -> Result<TracedIteration, RunError> {
+    let t0 = Instant::now();
+    let paths = trace_light_paths(prep, it, pass, guard)?;
+    let tree = if it.techniques.merge { merge_tree(&paths.vertices) } else { None };
+    if it.techniques.merge && tree.is_none() && !paths.vertices.is_empty() {
+        tracing::warn!("pass {pass}: the light vertices could not be indexed; this pass merges nothing");
+    }
+    let bytes = stored_bytes(it, paths.ends.len() as u64, paths.vertices.len() as u64, paths.splats.len() as u64);
+    Ok(TracedIteration { paths, tree, bytes, seconds: t0.elapsed().as_secs_f64() })
+}
+
+/// Writes iteration `pass`'s fixed-point estimate of every pixel of rows `rows` into `pass_sums`: each camera
+/// subpath's value, plus the light-tracing splats that land in those rows. Returns the rays the camera
+/// subpaths traced; stops when `guard.cancel` is set.
+fn camera_pass(
+    prep: &Prepared,
+    it: &Iteration,
+    traced: &TracedIteration,
+    rows: &Range<u32>,
+    pass: u32,
+    pass_sums: &mut [i64],
+    guard: &Guard,
+) -> Result<u64, RunError> {
+    let width = prep.camera.width;
+    let light = LightSide { paths: &traced.paths, tree: traced.tree.as_ref() };
+    let pixel = |x, y, px: &mut [i64], rays: &mut u64| {
+        let c = camera_subpath(prep, it, &light, (x, y), pass, rays);
+        for (s, v) in px.iter_mut().zip(c.to_array()) {
+            *s = to_fixed(v);
+        }
+    };
+    let rays = for_each_pixel(width as usize, rows, pass_sums, guard.cancel, pixel)?;
+    for &(pixel, c) in &traced.paths.splats {
+        let y = pixel / width;
+        if !rows.contains(&y) {
+            continue;
+        }
+        let at = 3 * ((y - rows.start) as usize * width as usize + (pixel % width) as usize);
+        for (s, v) in pass_sums[at..at + 3].iter_mut().zip(c.to_array()) {
+            *s = s.saturating_add(to_fixed(v));
+        }
+    }
+    Ok(rays)
 }

@@ -87,7 +87,7 @@ pub struct ImageRef {
     /// The file, as the scene writes it (relative to the scene's folder). Not part of the binary form: the
     /// image travels by `slot`.
     pub file: PathBuf,
-    /// Index of the image in the prepared scene's texture list, or [`NONE`] before the scene is prepared.
+    /// Index of the image in the prepared scene's texture list, or [`NONE`](crate::geometry::NONE) before the scene is prepared.
     pub slot: u32,
     /// Multiplies `(u, v)` before the lookup.
     pub scale: Vec2,
