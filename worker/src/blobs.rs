@@ -3,7 +3,7 @@
 //! arrives: the announced id and size, each chunk against the upload budget, the whole blob against a minimum
 //! rate, and the bytes against their id.
 
-use crate::Worker;
+use crate::service::Worker;
 use photon_proto::pb;
 use photon_proto::transport::SERVED_AT_ONCE;
 use photon_proto::{MAX_CHUNK, MAX_MESSAGE, quote};

@@ -8,9 +8,12 @@
 //! A worker serves the blobs it holds to its peers (`GetBlob`) and, asked by the coordinator, fetches a blob
 //! from a peer (`FetchBlob`) with its own token, checking the size and hash like an upload's.
 //!
-//! The crate by concern: [`Config`] and [`Limits`] (`config.rs`); who may call and `Hello` ([`serve`],
-//! `server.rs`); blobs in and out (`blobs.rs`); a strip from its checked request ([`check_strip_request`],
-//! [`StripOrder`]) to its events (`strip.rs`); the blob cache ([`cache`], [`disk_store`]).
+//! The crate by concern: the [`Worker`] and its `Render` trait (`service.rs`); [`Config`] and [`Limits`]
+//! (`config.rs`); who may call and `Hello` ([`serve`], `server.rs`, `peers.rs`, `listen.rs`); blobs in and out
+//! (`blobs.rs`); a strip's checked request ([`check_strip_request`], [`StripOrder`], `order.rs`), its decoded
+//! job (`jobs.rs`) and its render and events (`strip.rs`); the blob cache ([`cache`], [`disk_store`]). The files
+//! of each concern name `service.rs`, never the other way: no file names a file that names it back
+//! (`tests/module_layers.rs`).
 //!
 //! ## Refusals
 //!
@@ -88,145 +91,17 @@ mod config;
 pub mod disk_store;
 #[cfg(feature = "fault-injection")]
 mod fault;
+mod jobs;
 mod listen;
+mod order;
+mod peers;
 mod server;
+mod service;
 mod strip;
 
 pub use config::{Config, DEFAULT_MAX_STRIP_WORK, Limits};
 #[cfg(feature = "fault-injection")]
 pub use fault::Fault;
+pub use order::{MAX_FRAME_BYTES, MAX_TEXTURES, StripOrder, check_strip_request};
 pub use server::serve;
-pub use strip::{MAX_FRAME_BYTES, MAX_TEXTURES, StripOrder, check_strip_request};
-
-use cache::BlobCache;
-use photon_proto::pb::{self, render_server::Render};
-use photon_proto::transport::SERVED_AT_ONCE;
-use server::PeerCalls;
-use std::sync::Arc;
-use std::sync::atomic::AtomicUsize;
-use strip::{EventOrStatus, JobCache};
-use tokio::sync::Semaphore;
-use tokio_stream::wrappers::ReceiverStream;
-use tonic::{Request, Response, Status, Streaming};
-
-/// The render service.
-pub struct Worker {
-    config: Config,
-    pool: Arc<rayon::ThreadPool>,
-    blobs: Arc<BlobCache>,
-    /// The most recently used decoded jobs.
-    jobs: Arc<JobCache>,
-    /// One strip renders at a time: it has all the cores.
-    render_slot: Arc<Semaphore>,
-    /// Bytes that uploads in progress hold ([`Config::upload_budget_bytes`]).
-    upload_bytes: Arc<Semaphore>,
-    /// Blobs served to peers at once ([`photon_proto::transport::SERVED_AT_ONCE`]).
-    serving: Arc<Semaphore>,
-    /// Strip requests waiting for the render slot ([`Config::max_queue`]).
-    waiting: Arc<AtomicUsize>,
-    /// The fault this worker commits, and the strips it has left to commit it in.
-    #[cfg(feature = "fault-injection")]
-    faults: Arc<fault::Injector>,
-    /// Calls in progress per peer ([`Config::max_calls_per_peer`]).
-    peers: Arc<PeerCalls>,
-}
-
-/// Why a worker cannot start.
-#[derive(Debug, thiserror::Error)]
-pub enum WorkerError {
-    /// The render thread pool cannot be built.
-    #[error("cannot start the render threads: {0}")]
-    Threads(rayon::ThreadPoolBuildError),
-    /// The blob cache cannot be opened.
-    #[error(transparent)]
-    Cache(#[from] disk_store::DiskStoreError),
-}
-
-impl Worker {
-    /// A worker with `config`; starts its thread pool and opens its disk cache.
-    pub fn new(config: Config) -> Result<Self, WorkerError> {
-        let mut pool = rayon::ThreadPoolBuilder::new().thread_name(|i| format!("photon-render-{i}"));
-        if let Some(n) = config.threads {
-            pool = pool.num_threads(n);
-        }
-        let pool = pool.build().map_err(WorkerError::Threads)?;
-        let blobs = BlobCache::new(config.memory_cache_bytes, config.disk_cache.clone())?;
-        let upload_budget =
-            usize::try_from(config.upload_budget_bytes).unwrap_or(usize::MAX).min(Semaphore::MAX_PERMITS);
-        Ok(Self {
-            pool: Arc::new(pool),
-            blobs: Arc::new(blobs),
-            jobs: Arc::new(JobCache::default()),
-            render_slot: Arc::new(Semaphore::new(1)),
-            upload_bytes: Arc::new(Semaphore::new(upload_budget)),
-            serving: Arc::new(Semaphore::new(SERVED_AT_ONCE)),
-            waiting: Arc::new(AtomicUsize::new(0)),
-            #[cfg(feature = "fault-injection")]
-            faults: Arc::new(fault::Injector::new(config.fault)),
-            peers: Arc::new(PeerCalls::new(config.max_calls_per_peer)),
-            config,
-        })
-    }
-
-    /// Threads the worker renders with.
-    pub fn threads(&self) -> usize {
-        self.pool.current_num_threads()
-    }
-
-    /// What this worker checks strip requests against (with no texture images: a request adds its own).
-    pub fn limits(&self) -> Limits {
-        Limits {
-            strip_memory_bytes: self.config.strip_memory_bytes,
-            threads: self.threads(),
-            texture_bytes: 0,
-            max_strip_work: self.config.max_strip_work,
-        }
-    }
-}
-
-/// Every call is admitted by its peer's count of calls in progress ([`Config::max_calls_per_peer`]) and held
-/// for as long as it runs, then handled by the module of its concern.
-#[tonic::async_trait]
-impl Render for Worker {
-    async fn hello(&self, request: Request<pb::HelloRequest>) -> Result<Response<pb::HelloReply>, Status> {
-        let _call = self.peers.admit(request.remote_addr())?;
-        self.greet(request.into_inner()).map(Response::new)
-    }
-
-    async fn missing_blobs(
-        &self,
-        request: Request<pb::MissingBlobsRequest>,
-    ) -> Result<Response<pb::MissingBlobsReply>, Status> {
-        let _call = self.peers.admit(request.remote_addr())?;
-        self.missing(request.into_inner().ids).map(Response::new)
-    }
-
-    async fn put_blob(&self, request: Request<Streaming<pb::BlobChunk>>) -> Result<Response<pb::PutBlobReply>, Status> {
-        let _call = self.peers.admit(request.remote_addr())?;
-        let stored = self.receive_blob(&mut request.into_inner(), None).await?;
-        Ok(Response::new(pb::PutBlobReply { stored }))
-    }
-
-    async fn fetch_blob(&self, request: Request<pb::FetchBlobRequest>) -> Result<Response<pb::PutBlobReply>, Status> {
-        let _call = self.peers.admit(request.remote_addr())?;
-        let stored = self.fetch(request.into_inner()).await?;
-        Ok(Response::new(pb::PutBlobReply { stored }))
-    }
-
-    type GetBlobStream = ReceiverStream<Result<pb::BlobChunk, Status>>;
-
-    async fn get_blob(&self, request: Request<pb::GetBlobRequest>) -> Result<Response<Self::GetBlobStream>, Status> {
-        // The call is held by the stream's task until the blob is sent.
-        self.serve_blob(request).map(Response::new)
-    }
-
-    type RenderStripStream = ReceiverStream<EventOrStatus>;
-
-    async fn render_strip(
-        &self,
-        request: Request<pb::StripRequest>,
-    ) -> Result<Response<Self::RenderStripStream>, Status> {
-        // The call is held by the strip's task until its last event is sent (or it is cancelled).
-        self.start_strip(request).await
-    }
-}
+pub use service::{Worker, WorkerError};
