@@ -103,17 +103,17 @@ pub fn shadow_transmittance(
             if prep.geometry.occluded(&ray, reach) {
                 return Rgb::ZERO;
             }
-            return medium.map_or(tr, |m| tr * m.transmittance(dist));
+            return medium.map_or(tr, |m| tr * m.transmittance(&ray, dist));
         }
         *rays += 1;
         let Some(hit) = prep.geometry.intersect(&ray, reach) else {
-            return medium.map_or(tr, |m| tr * m.transmittance(dist));
+            return medium.map_or(tr, |m| tr * m.transmittance(&ray, dist));
         };
         if !prep.materials.get(hit.material as usize).is_some_and(Material::is_interface) {
             return Rgb::ZERO;
         }
         if let Some(m) = medium {
-            tr *= m.transmittance(hit.t);
+            tr *= m.transmittance(&ray, hit.t);
         }
         medium = media.after(&hit, ray.d, medium);
         o = hit.spawn_ray(ray.d).o;

@@ -58,7 +58,7 @@ pub fn visible_point_in(
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
             in_volume += beta * volume(&ray, &m, t_max, s, rays);
-            beta *= m.transmittance(t_max);
+            beta *= m.transmittance(&ray, t_max);
             if beta == Rgb::ZERO {
                 break;
             }

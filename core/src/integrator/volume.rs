@@ -186,7 +186,7 @@ pub fn in_scattering(
             distance: d_t * by_area,
             phase: if phase_hits { d_t * p * geometric } else { 0.0 },
         };
-        Some((m.transmittance(t) * m.sigma_s * li * p, densities))
+        Some((m.transmittance(ray, t) * m.sigma_s * li * p, densities))
     };
     let mut sum = Rgb::ZERO;
     if strategy != Strategy::Distance
@@ -277,13 +277,12 @@ pub fn path_li(
         let found = prep.geometry.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            let (uc, u) = (s.next_f32(), s.next_f32());
-            let flight = m.sample_distance(t_max, uc, u);
+            let flight = m.sample_distance(&ray, t_max, s);
             // Light scattered once at a point of this segment: like light sampling at a surface, only below the
             // last bounce; the phase-sampled strategy exists only where the path goes on from a scattering.
             if !finishing && depth < max_depth {
                 let at = flight.scattered.then_some((flight.t, flight.pdf));
-                let pdf = |t: f32| m.distance_pdf(t);
+                let pdf = |t: f32| m.distance_pdf(&ray, t);
                 let phase_hits = !direct_only;
                 l += beta * in_scattering(prep, &m, &ray, t_max, at, &pdf, Strategy::Mis, phase_hits, s, rays);
             }
@@ -369,13 +368,12 @@ pub fn path_li(
     l
 }
 
-/// A distance in the segment `[0, t_max)` in `m` sampled from the truncated free-flight density, its density,
-/// and the weight `T(t)/p(t)` that turns a volume estimate there into the segment's integral; `None` when the
-/// medium does not scatter.
-pub fn segment_point(m: &Medium, t_max: f32, s: &mut Sampler) -> Option<(f32, f32, Rgb)> {
-    let (uc, u) = (s.next_f32(), s.next_f32());
-    let (t, pdf) = m.sample_segment(t_max, uc, u)?;
-    Some((t, pdf, m.transmittance(t) / pdf))
+/// A distance in the segment `[0, t_max)` of `ray` in `m` sampled from the truncated free-flight density (two
+/// samples from `s`), its density, and the weight `T(t)/p(t)` that turns a volume estimate there into the
+/// segment's integral; `None` when the medium does not scatter.
+pub fn segment_point(m: &Medium, ray: &Ray, t_max: f32, s: &mut Sampler) -> Option<(f32, f32, Rgb)> {
+    let (t, pdf) = m.sample_segment(ray, t_max, s)?;
+    Some((t, pdf, m.transmittance(ray, t) / pdf))
 }
 
 /// The photon methods' volume estimate along a segment from a volume photon map (`photon-map`,
@@ -388,7 +386,7 @@ pub fn map_volume_estimate(
     t_max: f32,
     s: &mut Sampler,
 ) -> Rgb {
-    let Some((t, _, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
+    let Some((t, _, w)) = segment_point(m, ray, t_max, s) else { return Rgb::ZERO };
     let l = w * crate::photon::volume_radiance(map, ray.at(t), ray.d, m.g, gather);
     if l.is_finite() { l } else { Rgb::ZERO }
 }

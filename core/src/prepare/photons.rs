@@ -190,8 +190,7 @@ pub fn trace_path(
         let found = prep.geometry.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            let (uc, u) = (s.next_f32(), s.next_f32());
-            let flight = m.sample_distance(t_max, uc, u);
+            let flight = m.sample_distance(&ray, t_max, s);
             if flight.scattered {
                 let w = flight.weight;
                 let keep = match kind {

@@ -158,9 +158,9 @@ fn pixel_estimate(
         None => visible_point(prep, settings.max_depth, ray, &mut s, rays),
         Some(media) => {
             let mut along = |r: &Ray, m: &Medium, t_max: f32, s: &mut Sampler, rays: &mut u64| -> Rgb {
-                let Some((t, pdf, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
-                let mass = m.segment_mass(t_max);
-                let density = |x: f32| m.distance_pdf(x) / mass;
+                let Some((t, pdf, w)) = segment_point(m, r, t_max, s) else { return Rgb::ZERO };
+                let mass = m.segment_mass(r, t_max);
+                let density = |x: f32| m.distance_pdf(r, x) / mass;
                 let direct = in_scattering(prep, m, r, t_max, Some((t, pdf)), &density, Strategy::Mis, false, s, rays);
                 let indirect = match volume {
                     Some((v, radius)) => w * volume_radiance(v, r.at(t), r.d, m.g, Gather::Radius { radius }),
