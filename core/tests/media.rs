@@ -11,11 +11,13 @@ mod common;
 use common::{Mean, chi2_test, sampler};
 use glam::Vec3A;
 use photon_core::Rgb;
+use photon_core::integrator::Segment;
 use photon_core::integrator::volume::{Strategy, in_scattering};
 use photon_core::math::Ray;
 use photon_core::medium::{HenyeyGreenstein, Medium};
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::tracer::Tracer;
 use photon_core::render::render_image;
 use photon_core::scene::Scene;
 use std::path::Path;
@@ -261,13 +263,13 @@ intensity = [{intensity}, {intensity}, {intensity}]
     let mut results = Vec::new();
     for (k, strategy) in [Strategy::Mis, Strategy::Equiangular, Strategy::Distance].into_iter().enumerate() {
         let mut mean = Mean::default();
-        let mut s = sampler(15, k as u64);
-        let mut rays = 0;
+        let mut tracer = Tracer::new(&prep, sampler(15, k as u64));
+        let segment = Segment { ray: &ray, medium: &m, t_max: f32::INFINITY };
         for _ in 0..n {
-            let flight = m.sample_distance(&ray, f32::INFINITY, &mut s);
+            let flight = m.sample_distance(&ray, f32::INFINITY, &mut tracer.sampler);
             let at = flight.scattered.then_some((flight.t, flight.pdf));
             let pdf = |t: f32| m.distance_pdf(&ray, t);
-            mean.add(in_scattering(&prep, &m, &ray, f32::INFINITY, at, &pdf, strategy, false, &mut s, &mut rays));
+            mean.add(in_scattering(&mut tracer, &segment, at, &pdf, strategy, false));
         }
         let (value, err) = (mean.mean()[0], mean.std_error()[0]);
         let variance = err * err * n as f64;

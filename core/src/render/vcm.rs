@@ -62,6 +62,7 @@ use crate::math::{Ray, offset_ray_origin_by_error};
 use crate::method::Techniques;
 use crate::prepare::Prepared;
 use crate::prepare::budget::{LIGHT_VERTEX_BYTES, MERGE_TREE_BYTES_PER_VERTEX, SPLAT_BYTES};
+use crate::prepare::tracer::Tracer;
 use crate::run::{Guard, RunError};
 use glam::Vec3A;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -143,8 +144,10 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
                 guard.cancel.check()?;
                 meter.check()?;
                 let (v0, s0) = (vertices.len(), splats.len());
-                let mut s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
-                light_subpath(prep, it, &mut s, &mut vertices, &mut splats, &mut rays);
+                let s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
+                let mut tracer = Tracer::new(prep, s);
+                light_subpath(&mut tracer, it, &mut vertices, &mut splats);
+                rays += tracer.rays;
                 ends.push(vertices.len() as u32);
                 let (dv, ds) = ((vertices.len() - v0) as u64, (splats.len() - s0) as u64);
                 meter.add(dv * vertex_bytes + ds * splat_bytes + 8)?;
@@ -163,34 +166,36 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
     Ok(out)
 }
 
-/// Emission of a light subpath: the first ray, the throughput, and the MIS quantities before the first hit
+/// Emission of a light subpath: the first ray, and the throughput and MIS quantities before the first hit
 /// (eqs. 31–33, with delta lights as eqs. 48–50).
-fn emit(prep: &Prepared, it: &Iteration, s: &mut Sampler) -> Option<(Ray, Rgb, MisState)> {
-    let (i, pick) = prep.lights.choose(s.next_f32())?;
-    let e = prep.lights.lights.get(i)?.sample_le(&prep.geometry, pick, s)?;
+fn emit(tracer: &mut Tracer, it: &Iteration) -> Option<(Ray, Subpath)> {
+    let prep = tracer.prep;
+    let (i, pick) = prep.lights.choose(tracer.sampler.next_f32())?;
+    let e = prep.lights.lights.get(i)?.sample_le(&prep.geometry, pick, &mut tracer.sampler)?;
     if !(e.pdf_w > 0.0 && e.beta.is_finite()) {
         return None;
     }
-    Some((e.ray, e.beta, MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta)))
+    Some((e.ray, Subpath { beta: e.beta, mis: MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta) }))
+}
+
+/// A subpath after its last vertex: its throughput and its MIS quantities.
+#[derive(Clone, Copy, Debug)]
+struct Subpath {
+    /// Throughput from the subpath's origin (on a light subpath flux-like: emitted radiance over the densities).
+    beta: Rgb,
+    /// The MIS quantities.
+    mis: MisState,
 }
 
 /// Traces one light subpath: stores its vertices (when connecting or merging) and connects each to the camera
 /// (when connecting, or light tracing).
-fn light_subpath(
-    prep: &Prepared,
-    it: &Iteration,
-    s: &mut Sampler,
-    vertices: &mut Vec<LightVertex>,
-    splats: &mut Vec<Splat>,
-    rays: &mut u64,
-) {
-    let Some((mut ray, mut beta, mut state)) = emit(prep, it, s) else { return };
+fn light_subpath(tracer: &mut Tracer, it: &Iteration, vertices: &mut Vec<LightVertex>, splats: &mut Vec<Splat>) {
+    let prep = tracer.prep;
+    let Some((mut ray, mut path)) = emit(tracer, it) else { return };
     let tech = it.techniques;
-    loop {
-        *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+    while let Some(hit) = tracer.intersect(&ray, f32::INFINITY) {
         let wo = -ray.d;
-        state.arrive(hit.t, wo.dot(hit.n).abs());
+        path.mis.arrive(hit.t, wo.dot(hit.n).abs());
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.black_from(wo) {
@@ -198,69 +203,56 @@ fn light_subpath(
         }
         let q = continuation(&bsdf, wo);
         if bsdf.has_non_delta() {
-            let v = LightVertex { p: hit.p, p_error: hit.p_error, bsdf, wo, beta, q, mis: state };
+            let v = LightVertex { p: hit.p, p_error: hit.p_error, bsdf, wo, beta: path.beta, q, mis: path.mis };
             if tech.connect || tech.merge {
                 vertices.push(v);
             }
-            if (tech.connect || tech.light_tracing_only) && state.len < it.max_len {
-                connect_to_camera(prep, it, &hit, &v, s, splats, rays);
+            if (tech.connect || tech.light_tracing_only) && path.mis.len < it.max_len {
+                connect_to_camera(tracer, it, &hit, &v, splats);
             }
         }
-        if state.len + 2 > it.max_len {
+        if path.mis.len + 2 > it.max_len {
             break;
         }
-        let Some(wi) = continue_subpath(it, &bsdf, wo, q, TransportMode::Importance, s, &mut state, &mut beta) else {
+        let Some(wi) = continue_subpath(tracer, it, &bsdf, wo, q, TransportMode::Importance, &mut path) else {
             break;
         };
         ray = hit.spawn_ray(wi);
     }
 }
 
-/// One step of a subpath (SmallVCM's `SampleScattering`): samples the BSDF at a vertex reached from `wo` in
-/// `mode` (light subpaths carry importance, camera subpaths radiance), applies Russian roulette with
-/// continuation probability `q`, and updates the MIS quantities and the throughput (on a light subpath with the
-/// adjoint BSDF's shading-normal factor). The new direction, or `None` when the subpath ends.
-#[allow(clippy::too_many_arguments)]
+/// One step of a subpath (SmallVCM's `SampleScattering`): the surface-bounce step at a vertex reached from
+/// `wo` in `mode` (light subpaths carry importance, camera subpaths radiance; [`Tracer::sample_bsdf`]), Russian
+/// roulette with continuation probability `q`, and the update of the MIS quantities and of the throughput by
+/// `f·|wi·ns| / (pdf·q)` (on a light subpath with the adjoint BSDF's shading-normal factor,
+/// [`Bsdf::sample_weight`]). The new direction, or `None` when the subpath ends.
 fn continue_subpath(
+    tracer: &mut Tracer,
     it: &Iteration,
     bsdf: &Bsdf,
     wo: Vec3A,
     q: f32,
     mode: TransportMode,
-    s: &mut Sampler,
-    state: &mut MisState,
-    beta: &mut Rgb,
+    path: &mut Subpath,
 ) -> Option<Vec3A> {
-    let (u, u2) = (s.next_f32(), s.next_2d());
-    let bs = bsdf.sample(wo, u, u2, mode)?;
-    if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+    let bs = tracer.sample_bsdf(bsdf, wo, mode)?;
+    if tracer.sampler.next_f32() >= q {
         return None;
     }
     let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
-    state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
-    let weight = bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q);
-    *beta *= match mode {
-        TransportMode::Importance => bs.f * (weight * bsdf.adjoint_correction(wo, bs.wi)),
-        TransportMode::Radiance => bs.f * weight,
-    };
-    (beta.is_finite() && *beta != Rgb::ZERO).then_some(bs.wi)
+    path.mis.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
+    path.beta *= bsdf.sample_weight(wo, &bs, bs.pdf * q, mode);
+    (path.beta.is_finite() && path.beta != Rgb::ZERO).then_some(bs.wi)
 }
 
 /// Light tracing: connects light vertex `v` (at `hit`) to a point on the lens and adds its contribution to the
 /// pixel it lands on (SmallVCM's `ConnectToCamera`; the report's eqs. 46–47). The contribution is
 /// `w · β · f · |cos_x| · W_e / (d² N)`, with `W_e` the camera's importance per pixel
 /// ([`crate::camera::Camera::pixel_direction_pdf`]).
-fn connect_to_camera(
-    prep: &Prepared,
-    it: &Iteration,
-    hit: &Hit,
-    v: &LightVertex,
-    s: &mut Sampler,
-    splats: &mut Vec<Splat>,
-    rays: &mut u64,
-) {
+fn connect_to_camera(tracer: &mut Tracer, it: &Iteration, hit: &Hit, v: &LightVertex, splats: &mut Vec<Splat>) {
+    let prep = tracer.prep;
     let camera = &prep.camera;
-    let lens = camera.lens_point(s.next_2d());
+    let lens = camera.lens_point(tracer.sampler.next_2d());
     let to_lens = lens - v.p;
     let dist2 = to_lens.length_squared();
     if dist2.is_nan() || dist2 <= 0.0 {
@@ -281,7 +273,7 @@ fn connect_to_camera(
     if !c.is_finite() || c == Rgb::ZERO {
         return;
     }
-    *rays += 1;
+    tracer.rays += 1;
     if !unoccluded(prep, hit, w, lens) {
         return;
     }
@@ -313,7 +305,7 @@ pub struct LightSide<'a> {
 }
 
 /// The camera subpath of sample `pass` of pixel `(x, y)`: the radiance it gathers by every technique of `it`
-/// (SmallVCM's camera loop). Non-finite contributions count as zero.
+/// (SmallVCM's camera loop). Non-finite contributions count as zero. Adds the rays it traces to `rays`.
 pub fn camera_subpath(
     prep: &Prepared,
     it: &Iteration,
@@ -322,7 +314,17 @@ pub fn camera_subpath(
     pass: u32,
     rays: &mut u64,
 ) -> Rgb {
-    let (mut ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, pass);
+    let (ray, s) = camera_sample(prep, prep.settings.seed, x, y, pass);
+    let mut tracer = Tracer::new(prep, s);
+    let l = camera_walk(&mut tracer, it, light, ray, (y * prep.camera.width + x) as usize);
+    *rays += tracer.rays;
+    l
+}
+
+/// [`camera_subpath`] from its camera ray `ray`, in pixel `index` (`y·width + x`, the index of the light subpath
+/// it connects to).
+fn camera_walk(tracer: &mut Tracer, it: &Iteration, light: &LightSide, mut ray: Ray, index: usize) -> Rgb {
+    let prep = tracer.prep;
     let camera = &prep.camera;
     let tech = it.techniques;
     let cos_camera = ray.d.dot(camera.forward());
@@ -330,20 +332,17 @@ pub fn camera_subpath(
         return Rgb::ZERO;
     }
     let camera_pdf_w = camera.pixel_direction_pdf(cos_camera);
-    let mut state = MisState::from_camera(it, camera_pdf_w);
-    let mut beta = Rgb::ONE;
+    let mut path = Subpath { beta: Rgb::ONE, mis: MisState::from_camera(it, camera_pdf_w) };
     let mut l = Rgb::ZERO;
-    let own_path = light.paths.of((y * camera.width + x) as usize);
-    loop {
-        *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+    let own_path = light.paths.of(index);
+    while let Some(hit) = tracer.intersect(&ray, f32::INFINITY) {
         let wo = -ray.d;
-        state.arrive(hit.t, wo.dot(hit.n).abs());
+        path.mis.arrive(hit.t, wo.dot(hit.n).abs());
         if hit.light != NONE {
-            let le = emission(prep, it, &hit, wo, &state);
-            l += finite_or_zero(beta * le);
+            let le = emission(prep, it, &hit, wo, &path.mis);
+            l += finite_or_zero(path.beta * le);
         }
-        if tech.light_tracing_only || state.len >= it.max_len {
+        if tech.light_tracing_only || path.mis.len >= it.max_len {
             break;
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
@@ -352,23 +351,22 @@ pub fn camera_subpath(
             break;
         }
         let q = continuation(&bsdf, wo);
-        let vertex = CameraVertex { hit: &hit, bsdf: &bsdf, wo, q, mis: state };
+        let vertex = CameraVertex { hit: &hit, bsdf: &bsdf, wo, q, mis: path.mis };
         if bsdf.has_non_delta() {
             if tech.connect {
-                l += finite_or_zero(beta * direct_light(prep, it, &vertex, &mut s, rays));
+                l += finite_or_zero(path.beta * direct_light(tracer, it, &vertex));
                 for v in own_path {
-                    if v.mis.len + 1 + state.len > it.max_len {
+                    if v.mis.len + 1 + path.mis.len > it.max_len {
                         break;
                     }
-                    l += finite_or_zero(beta * connect(prep, it, &vertex, v, rays));
+                    l += finite_or_zero(path.beta * connect(tracer, it, &vertex, v));
                 }
             }
             if let (true, Some(tree)) = (tech.merge, light.tree) {
-                l += finite_or_zero(beta * merge(it, &vertex, &light.paths.vertices, tree));
+                l += finite_or_zero(path.beta * merge(it, &vertex, &light.paths.vertices, tree));
             }
         }
-        let Some(wi) = continue_subpath(it, &bsdf, wo, q, TransportMode::Radiance, &mut s, &mut state, &mut beta)
-        else {
+        let Some(wi) = continue_subpath(tracer, it, &bsdf, wo, q, TransportMode::Radiance, &mut path) else {
             break;
         };
         ray = hit.spawn_ray(wi);
@@ -403,8 +401,9 @@ fn emission(prep: &Prepared, it: &Iteration, hit: &Hit, wo: Vec3A, state: &MisSt
 
 /// Next-event estimation at a camera vertex: a light chosen by power, a point on it (SmallVCM's
 /// `DirectIllumination`; eqs. 44–45).
-fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampler, rays: &mut u64) -> Rgb {
-    let (u, u2) = (s.next_f32(), s.next_2d());
+fn direct_light(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex) -> Rgb {
+    let prep = tracer.prep;
+    let (u, u2) = (tracer.sampler.next_f32(), tracer.sampler.next_2d());
     let Some((i, pick)) = prep.lights.choose(u) else { return Rgb::ZERO };
     let Some(light) = prep.lights.lights.get(i) else { return Rgb::ZERO };
     let Some(ls) = light.sample_li(&prep.geometry, c.hit.p, u2) else { return Rgb::ZERO };
@@ -427,7 +426,7 @@ fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampl
     let emission_ratio = emission_pdf_w * ls.wi.dot(c.bsdf.ng).abs() / (direct_pdf_w * cos_light);
     let weight = weights::direct(it, &c.mis, bsdf_pdf, bsdf_pdf_rev, pick * direct_pdf_w, emission_ratio);
     let contribution = radiance * f * (weight * ls.wi.dot(c.bsdf.frame.n).abs() / (pick * direct_pdf_w));
-    *rays += 1;
+    tracer.rays += 1;
     if !unoccluded(prep, c.hit, ls.wi, ls.p) {
         return Rgb::ZERO;
     }
@@ -435,7 +434,7 @@ fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampl
 }
 
 /// Connects camera vertex `c` to light vertex `v` (SmallVCM's `ConnectVertices`; eqs. 40–41).
-fn connect(prep: &Prepared, it: &Iteration, c: &CameraVertex, v: &LightVertex, rays: &mut u64) -> Rgb {
+fn connect(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex, v: &LightVertex) -> Rgb {
     let d = v.p - c.hit.p;
     let dist2 = d.length_squared();
     if dist2.is_nan() || dist2 <= 0.0 {
@@ -461,9 +460,9 @@ fn connect(prep: &Prepared, it: &Iteration, c: &CameraVertex, v: &LightVertex, r
     if contribution == Rgb::ZERO || !contribution.is_finite() {
         return Rgb::ZERO;
     }
-    *rays += 1;
+    tracer.rays += 1;
     let target = offset_ray_origin_by_error(v.p, v.p_error, v.bsdf.ng, -w);
-    if !unoccluded(prep, c.hit, w, target) {
+    if !unoccluded(tracer.prep, c.hit, w, target) {
         return Rgb::ZERO;
     }
     contribution
