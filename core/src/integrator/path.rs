@@ -78,7 +78,9 @@ impl PathState {
     /// ([`Tracer::sample_bsdf`]), the throughput times `f·|wi·ns|/pdf`, and then either the end of a direct-only
     /// path at its first non-delta sample (`finishing`) or the η² bookkeeping and Russian roulette
     /// ([`roulette`]). The direction the path continues in, or `None` where it ends.
-    #[inline]
+    // Always inlined, as the two loops held this code before they shared it (as a call of its own it added
+    // about 0.9 % instructions to a path-traced render).
+    #[inline(always)]
     pub fn bounce(
         &mut self,
         tracer: &mut Tracer,

@@ -45,7 +45,9 @@ impl<'a> Tracer<'a> {
     /// `mode` ([`Bsdf::sample`]). `None` where the path ends at this surface: nothing sampled, a pdf that is
     /// not positive (or NaN), or a zero BSDF value. The throughput factor of the sample is
     /// [`Bsdf::sample_weight`].
-    #[inline]
+    // Always inlined: each caller then holds its `Bsdf::sample` call as it did before this step was shared
+    // (measured: as a call of its own it added about 0.5 % instructions to a vcm render).
+    #[inline(always)]
     pub fn sample_bsdf(&mut self, bsdf: &Bsdf, wo: Vec3A, mode: TransportMode) -> Option<BsdfSample> {
         let (u, u2) = (self.sampler.next_f32(), self.sampler.next_2d());
         let bs = bsdf.sample(wo, u, u2, mode)?;
