@@ -10,6 +10,12 @@
 //! its medium ([`Media::after`]). The camera and each point light are in the medium of the innermost closed
 //! object that contains them, or in the global one ([`Media::at`]).
 //!
+//! The integrators and photon tracing ask a medium only along a ray: [`Medium::transmittance`],
+//! [`Medium::sample_distance`], [`Medium::sample_segment`], [`Medium::distance_pdf`] and
+//! [`Medium::segment_mass`] take the ray (unit direction) and distances along it, and the sampling calls the
+//! path's sampler, from which they draw. A homogeneous medium needs only the distances (closed forms); a medium
+//! that varies in space would answer the same calls by tracking along the ray (pbrt-v4 §14.2).
+//!
 //! Directions follow light's flow: the phase function is evaluated at `cos θ = d_in · d_out`, the cosine
 //! between the direction light travelled before the scattering and after it, so `g > 0` scatters forwards.
 //! Seen from a camera path that arrived along `ray.d` and leaves along `wi`, light travels along `−wi` then
@@ -19,6 +25,7 @@ use crate::Rgb;
 use crate::geometry::shapes::Shape;
 use crate::geometry::{Geometry, Hit};
 use crate::math::fmath;
+use crate::math::rng::Sampler;
 use crate::math::{Frame, Ray};
 use glam::{Vec2, Vec3A};
 use serde::{Deserialize, Serialize};
@@ -74,57 +81,79 @@ impl Medium {
         self.sigma_t().max_element() <= 0.0
     }
 
-    /// Transmittance `e^(−σt·d)` over distance `d ≥ 0` (which may be infinite: then 0 where σt > 0, 1 where
-    /// σt = 0).
+    /// Transmittance along `ray` (unit direction) from its origin to distance `t ≥ 0`, which may be infinite:
+    /// here `e^(−σt·t)` (Beer–Lambert; pbrt-v4 §11.2), 0 where σt > 0 and 1 where σt = 0 over an infinite
+    /// distance. The ray is what a medium that varies in space integrates σt along; it would estimate the
+    /// integral by ratio tracking (pbrt-v4 §14.2.2) from a stream of its own, hashed from the ray, so the
+    /// path's sample streams keep their dimensions.
     #[inline]
-    pub fn transmittance(&self, d: f32) -> Rgb {
+    pub fn transmittance(&self, ray: &Ray, t: f32) -> Rgb {
+        let _ = ray;
+        self.transmittance_over(t)
+    }
+
+    /// `e^(−σt·d)` over distance `d`: the homogeneous closed form.
+    #[inline]
+    fn transmittance_over(&self, d: f32) -> Rgb {
         let st = self.sigma_t();
         Rgb::new(tr(st.x, d), tr(st.y, d), tr(st.z, d))
     }
 
-    /// The density of a free flight sampled by [`Medium::sample_distance`] ending at `t`:
-    /// `p(t) = (1/3)·Σ_c σt_c·e^(−σt_c·t)` (one channel chosen uniformly, its exponential sampled; single-sample
-    /// spectral MIS, pbrt-v3 §15.2.2).
+    /// The density (per scene unit) of a free flight along `ray` sampled by [`Medium::sample_distance`] ending
+    /// at `t`: `p(t) = (1/3)·Σ_c σt_c·e^(−σt_c·t)` (one channel chosen uniformly, its exponential sampled;
+    /// single-sample spectral MIS, pbrt-v3 §15.2.2).
     #[inline]
-    pub fn distance_pdf(&self, t: f32) -> f32 {
+    pub fn distance_pdf(&self, ray: &Ray, t: f32) -> f32 {
+        let _ = ray;
+        self.distance_pdf_at(t)
+    }
+
+    /// [`Medium::distance_pdf`] at distance `t` of the homogeneous medium.
+    #[inline]
+    fn distance_pdf_at(&self, t: f32) -> f32 {
         let st = self.sigma_t();
-        let tr = self.transmittance(t);
+        let tr = self.transmittance_over(t);
         (st * tr).element_sum() / 3.0
     }
 
     /// The probability that a free flight passes `t`: `(1/3)·Σ_c e^(−σt_c·t)`.
     #[inline]
-    pub fn pass_probability(&self, t: f32) -> f32 {
-        self.transmittance(t).element_sum() / 3.0
+    fn pass_probability(&self, t: f32) -> f32 {
+        self.transmittance_over(t).element_sum() / 3.0
     }
 
-    /// Samples the distance to the next interaction along a ray whose surface hit is at `t_max` (∞ when none):
-    /// a channel chosen by `u_channel`, then `t = −ln(1 − u)/σt_c` (pbrt-v4 §11.2.2). A medium that does not
-    /// scatter is never sampled: the flight reaches `t_max` with weight `T(t_max)`, so an absorbing slab costs no
-    /// noise. The weight keeps the estimate unbiased in every channel.
-    pub fn sample_distance(&self, t_max: f32, u_channel: f32, u: f32) -> FreeFlight {
+    /// Samples the distance to the next interaction along `ray` (unit direction), whose surface hit is at
+    /// `t_max` (∞ when none), drawing two samples from `s` (both, always: a channel, then the distance): a
+    /// channel `c` chosen uniformly, then `t = −ln(1 − u)/σt_c` (pbrt-v4 §11.2.2). A medium that does not
+    /// scatter is never sampled: the flight reaches `t_max` with weight `T(t_max)`, so an absorbing slab costs
+    /// no noise. The weight keeps the estimate unbiased in every channel. A medium that varies in space would
+    /// sample the same flight by delta tracking along `ray` (pbrt-v4 §14.2.1).
+    pub fn sample_distance(&self, ray: &Ray, t_max: f32, s: &mut Sampler) -> FreeFlight {
+        let _ = ray;
+        let (u_channel, u) = (s.next_f32(), s.next_f32());
         if !self.scatters() {
-            return FreeFlight { t: t_max, scattered: false, weight: self.transmittance(t_max), pdf: 0.0 };
+            return FreeFlight { t: t_max, scattered: false, weight: self.transmittance_over(t_max), pdf: 0.0 };
         }
         let st = self.sigma_t();
         let c = ((u_channel * 3.0) as usize).min(2);
         let sc = st[c];
         let t = if sc > 0.0 { -fmath::ln_1p(-u) / sc } else { f32::INFINITY };
         if t < t_max {
-            let pdf = self.distance_pdf(t);
-            let weight = self.sigma_s * self.transmittance(t) / pdf;
+            let pdf = self.distance_pdf_at(t);
+            let weight = self.sigma_s * self.transmittance_over(t) / pdf;
             if pdf > 0.0 && weight.is_finite() {
                 return FreeFlight { t, scattered: true, weight, pdf };
             }
         }
         let p_pass = self.pass_probability(t_max);
-        let weight = if p_pass > 0.0 { self.transmittance(t_max) / p_pass } else { Rgb::ZERO };
+        let weight = if p_pass > 0.0 { self.transmittance_over(t_max) / p_pass } else { Rgb::ZERO };
         FreeFlight { t: t_max, scattered: false, weight, pdf: 0.0 }
     }
 
-    /// The probability that a free flight ([`Medium::sample_distance`]) ends before `t_max`:
+    /// The probability that a free flight along `ray` ([`Medium::sample_distance`]) ends before `t_max`:
     /// `(1/3)·Σ_c (1 − e^(−σt_c·t_max))`, each term without the cancellation of a thin segment.
-    pub fn segment_mass(&self, t_max: f32) -> f32 {
+    pub fn segment_mass(&self, ray: &Ray, t_max: f32) -> f32 {
+        let _ = ray;
         self.channel_masses(t_max).iter().sum::<f32>() / 3.0
     }
 
@@ -133,12 +162,15 @@ impl Medium {
         self.sigma_t().to_array().map(|s| if s > 0.0 { -expm1(-s * t_max) } else { 0.0 })
     }
 
-    /// Samples a distance in `[0, t_max)` from the free-flight density restricted to the segment,
-    /// `p(t) / m` with `m` = [`Medium::segment_mass`]: a channel chosen with probability proportional to its
-    /// mass on the segment (by `u_channel`), then its exponential inverted on the interval (by `u`). The point
-    /// where a photon method estimates in-scattered radiance along a segment. Returns `(t, density)`, or `None`
-    /// when the medium does not scatter or the segment holds no mass.
-    pub fn sample_segment(&self, t_max: f32, u_channel: f32, u: f32) -> Option<(f32, f32)> {
+    /// Samples a distance in `[0, t_max)` of `ray` from the free-flight density restricted to the segment,
+    /// `p(t) / m` with `m` = [`Medium::segment_mass`], drawing two samples from `s` (both, always): a channel
+    /// chosen with probability proportional to its mass on the segment, then its exponential inverted on the
+    /// interval. The point where a photon method estimates in-scattered radiance along a segment. Returns
+    /// `(t, density)`, the density per scene unit, or `None` when the medium does not scatter or the segment
+    /// holds no mass.
+    pub fn sample_segment(&self, ray: &Ray, t_max: f32, s: &mut Sampler) -> Option<(f32, f32)> {
+        let _ = ray;
+        let (u_channel, u) = (s.next_f32(), s.next_f32());
         if !self.scatters() || t_max.is_nan() || t_max <= 0.0 {
             return None;
         }
@@ -160,7 +192,7 @@ impl Medium {
         }
         let sc = self.sigma_t()[c];
         let t = (-fmath::ln_1p(-u * masses[c]) / sc).min(t_max.next_down_f32());
-        let pdf = self.distance_pdf(t) / (total / 3.0);
+        let pdf = self.distance_pdf_at(t) / (total / 3.0);
         (pdf > 0.0 && pdf.is_finite() && t.is_finite()).then_some((t, pdf))
     }
 }

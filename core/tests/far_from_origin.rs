@@ -15,6 +15,7 @@ use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::tracer::Tracer;
 use photon_core::render::render_image;
 use photon_core::scene::{LightSpec, Object, Scene};
 use std::path::Path;
@@ -103,13 +104,8 @@ intensity = [4.0, 4.0, 4.0]
     let eye = Vec3A::new(0.0, 3.0, 3.0) + far;
     for (i, target) in [[0.0, 0.0, 0.0], [1.0, 0.0, -1.0], [-2.0, 0.0, 0.5]].iter().enumerate() {
         let p = Vec3A::from_array(*target) + far;
-        let mut rays = 0;
-        let l = photon_core::integrator::li(
-            &prep,
-            Ray::new(eye, fmath::normalize(p - eye)),
-            &mut Sampler::for_pixel(1, i as u32, 0, 0),
-            &mut rays,
-        );
+        let mut tracer = Tracer::new(&prep, Sampler::for_pixel(1, i as u32, 0, 0));
+        let l = photon_core::integrator::li(&mut tracer, Ray::new(eye, fmath::normalize(p - eye)));
         let d = Vec3A::new(0.5, 2.0, 0.0) - Vec3A::from_array(*target);
         let expected = 0.5 / std::f32::consts::PI * 4.0 * (d.y / d.length()) / d.length_squared();
         // Positions carry about 1e-3 of rounding 10,000 units out: allow for that in the geometry, not more.

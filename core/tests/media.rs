@@ -11,11 +11,13 @@ mod common;
 use common::{Mean, chi2_test, sampler};
 use glam::Vec3A;
 use photon_core::Rgb;
+use photon_core::integrator::Segment;
 use photon_core::integrator::volume::{Strategy, in_scattering};
 use photon_core::math::Ray;
 use photon_core::medium::{HenyeyGreenstein, Medium};
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::tracer::Tracer;
 use photon_core::render::render_image;
 use photon_core::scene::Scene;
 use std::path::Path;
@@ -144,10 +146,11 @@ fn segment_points_follow_their_density_in_a_coloured_medium() {
     // E[g(t)/p(t)] = ∫₀^1.5 g(t) dt for g(t) = t (1.125) and g = 1 (1.5).
     let m = Medium { sigma_a: Rgb::new(0.5, 0.0, 0.0), sigma_s: Rgb::new(0.5, 0.1, 0.0), g: 0.0 };
     let t_max = 1.5f32;
+    let ray = Ray::new(Vec3A::ZERO, Vec3A::X);
     let mut s = sampler(17, 0);
     let (mut lin, mut one) = (Mean::default(), Mean::default());
     for _ in 0..400_000 {
-        let (t, pdf) = m.sample_segment(t_max, s.next_f32(), s.next_f32()).unwrap();
+        let (t, pdf) = m.sample_segment(&ray, t_max, &mut s).unwrap();
         assert!((0.0..t_max).contains(&t), "{t}");
         lin.add(Rgb::splat(t / pdf));
         one.add(Rgb::splat(1.0 / pdf));
@@ -156,7 +159,7 @@ fn segment_points_follow_their_density_in_a_coloured_medium() {
     eprintln!("∫t = {a:.5} (1.125), ∫1 = {b:.5} (1.5)");
     assert!((a - 1.125).abs() < 4.0 * lin.std_error()[0] + 1e-4, "{a}");
     assert!((b - 1.5).abs() < 4.0 * one.std_error()[0] + 1e-4, "{b}");
-    assert!((f64::from(m.segment_mass(t_max)) - (2.0 - (-1.5f64).exp() - (-0.15f64).exp()) / 3.0).abs() < 1e-6);
+    assert!((f64::from(m.segment_mass(&ray, t_max)) - (2.0 - (-1.5f64).exp() - (-0.15f64).exp()) / 3.0).abs() < 1e-6);
 }
 
 #[test]
@@ -260,13 +263,13 @@ intensity = [{intensity}, {intensity}, {intensity}]
     let mut results = Vec::new();
     for (k, strategy) in [Strategy::Mis, Strategy::Equiangular, Strategy::Distance].into_iter().enumerate() {
         let mut mean = Mean::default();
-        let mut s = sampler(15, k as u64);
-        let mut rays = 0;
+        let mut tracer = Tracer::new(&prep, sampler(15, k as u64));
+        let segment = Segment { ray: &ray, medium: &m, t_max: f32::INFINITY };
         for _ in 0..n {
-            let flight = m.sample_distance(f32::INFINITY, s.next_f32(), s.next_f32());
+            let flight = m.sample_distance(&ray, f32::INFINITY, &mut tracer.sampler);
             let at = flight.scattered.then_some((flight.t, flight.pdf));
-            let pdf = |t: f32| m.distance_pdf(t);
-            mean.add(in_scattering(&prep, &m, &ray, f32::INFINITY, at, &pdf, strategy, false, &mut s, &mut rays));
+            let pdf = |t: f32| m.distance_pdf(&ray, t);
+            mean.add(in_scattering(&mut tracer, &segment, at, &pdf, strategy, false));
         }
         let (value, err) = (mean.mean()[0], mean.std_error()[0]);
         let variance = err * err * n as f64;

@@ -12,6 +12,7 @@ use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::tracer::Tracer;
 use photon_core::scene::Scene;
 use std::path::Path;
 
@@ -73,9 +74,8 @@ fn radiance(prep: &Prepared, integrator: Method) -> Vec<(Rgb, Rgb)> {
             let n = 16;
             let mut sum = Rgb::ZERO;
             for k in 0..n {
-                let mut s = Sampler::for_pixel(1, i as u32, 0, k);
-                let mut rays = 0;
-                sum += photon_core::integrator::li(&prep, ray, &mut s, &mut rays);
+                let mut tracer = Tracer::new(&prep, Sampler::for_pixel(1, i as u32, 0, k));
+                sum += photon_core::integrator::li(&mut tracer, ray);
             }
             let d = light - p;
             let expected =

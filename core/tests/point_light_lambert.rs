@@ -9,6 +9,7 @@ use photon_core::math::fmath;
 use photon_core::math::rng::Sampler;
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
+use photon_core::prepare::tracer::Tracer;
 use photon_core::scene::Scene;
 use std::path::Path;
 
@@ -52,9 +53,8 @@ fn radiance_matches_the_analytic_value() {
         for (i, target) in [[0.0, 0.0, 0.0], [1.5, 0.0, -2.0], [-2.0, 0.0, 1.0], [0.3, 0.0, -0.4]].iter().enumerate() {
             let p = Vec3A::from_array(*target);
             let ray = Ray::new(eye, fmath::normalize(p - eye));
-            let mut s = Sampler::for_pixel(1, i as u32, 0, 0);
-            let mut rays = 0;
-            let l = photon_core::integrator::li(&prep, ray, &mut s, &mut rays);
+            let mut tracer = Tracer::new(&prep, Sampler::for_pixel(1, i as u32, 0, 0));
+            let l = photon_core::integrator::li(&mut tracer, ray);
             let d = light - p;
             let r2 = d.length_squared();
             let cos = fmath::normalize(d).y;

@@ -6,10 +6,10 @@ use crate::Rgb;
 use crate::geometry::Hit;
 use crate::material::Material;
 use crate::material::bsdf::{Bsdf, TransportMode};
-use crate::math::rng::Sampler;
 use crate::math::{Ray, power_heuristic};
 use crate::medium::{MAX_CROSSINGS, Media, Medium};
 use crate::prepare::Prepared;
+use crate::prepare::tracer::Tracer;
 use glam::Vec3A;
 
 /// Whether the segment from `hit` (leaving towards `wi`) to `target` is free. `target` has been moved off its
@@ -26,18 +26,16 @@ pub fn unoccluded(prep: &Prepared, hit: &Hit, wi: Vec3A, target: Vec3A) -> bool 
 /// the complementary weight); without, light sampling carries the full estimate. `medium` is the medium on
 /// the side the path arrived from; in a scene with media the shadow ray carries the transmittance of the
 /// medium it leaves into ([`crate::medium::Media::after`]).
-#[allow(clippy::too_many_arguments)]
 pub fn sample_one_light(
-    prep: &Prepared,
+    tracer: &mut Tracer,
     hit: &Hit,
     bsdf: &Bsdf,
     wo: Vec3A,
     medium: Option<Medium>,
-    s: &mut Sampler,
-    rays: &mut u64,
     mis: bool,
 ) -> Rgb {
-    let (u, u2) = (s.next_f32(), s.next_2d());
+    let prep = tracer.prep;
+    let (u, u2) = (tracer.sampler.next_f32(), tracer.sampler.next_2d());
     let Some((i, pmf)) = prep.lights.choose(u) else { return Rgb::ZERO };
     let light = &prep.lights.lights[i];
     let Some(ls) = light.sample_li(&prep.geometry, hit.p, u2) else { return Rgb::ZERO };
@@ -48,7 +46,7 @@ pub fn sample_one_light(
     }
     let f = match &prep.media {
         None => {
-            *rays += 1;
+            tracer.rays += 1;
             if !unoccluded(prep, hit, ls.wi, ls.p) {
                 return Rgb::ZERO;
             }
@@ -56,7 +54,7 @@ pub fn sample_one_light(
         }
         Some(media) => {
             let origin = hit.spawn_ray(ls.wi).o;
-            let tr = shadow_transmittance(prep, media, origin, ls.p, media.after(hit, ls.wi, medium), rays);
+            let tr = shadow_transmittance(tracer, media, origin, ls.p, media.after(hit, ls.wi, medium));
             if tr == Rgb::ZERO {
                 return Rgb::ZERO;
             }
@@ -81,13 +79,13 @@ pub fn sample_one_light(
 /// ([`Media::after`]). The last 10⁻⁵ of the distance is not tested (the target has been moved off its surface).
 /// Counts the rays it traces.
 pub fn shadow_transmittance(
-    prep: &Prepared,
+    tracer: &mut Tracer,
     media: &Media,
     origin: Vec3A,
     target: Vec3A,
     mut medium: Option<Medium>,
-    rays: &mut u64,
 ) -> Rgb {
+    let prep = tracer.prep;
     let mut o = origin;
     let mut tr = Rgb::ONE;
     for _ in 0..=MAX_CROSSINGS {
@@ -99,21 +97,20 @@ pub fn shadow_transmittance(
         let ray = Ray::new(o, d / dist);
         let reach = dist * (1.0 - 1e-5);
         if !media.interfaces {
-            *rays += 1;
+            tracer.rays += 1;
             if prep.geometry.occluded(&ray, reach) {
                 return Rgb::ZERO;
             }
-            return medium.map_or(tr, |m| tr * m.transmittance(dist));
+            return medium.map_or(tr, |m| tr * m.transmittance(&ray, dist));
         }
-        *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, reach) else {
-            return medium.map_or(tr, |m| tr * m.transmittance(dist));
+        let Some(hit) = tracer.intersect(&ray, reach) else {
+            return medium.map_or(tr, |m| tr * m.transmittance(&ray, dist));
         };
         if !prep.materials.get(hit.material as usize).is_some_and(Material::is_interface) {
             return Rgb::ZERO;
         }
         if let Some(m) = medium {
-            tr *= m.transmittance(hit.t);
+            tr *= m.transmittance(&ray, hit.t);
         }
         medium = media.after(&hit, ray.d, medium);
         o = hit.spawn_ray(ray.d).o;

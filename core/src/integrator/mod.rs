@@ -11,10 +11,15 @@
 //! the volumetric path tracer for `Path` and `Direct`, and the media-aware walk ([`visible_point_in`]) for the
 //! photon methods; a scene without media never runs medium code.
 //!
+//! Every estimator follows its path with the path's [`Tracer`] (the prepared job, the sample stream, the ray
+//! count), lent as `&mut Tracer`; the surface-bounce step they share is [`Tracer::sample_bsdf`] with
+//! [`crate::material::bsdf::Bsdf::sample_weight`], and the path tracers' η² bookkeeping and Russian roulette
+//! are `path`'s `PathState::bounce`, which [`volume`] uses too.
+//!
 //! This module holds the one dispatch ([`estimate`]); what the estimators share lives in files of its own, so
 //! that no file names one that names it back: light sampling and shadow rays ([`direct`]), and the walk through
-//! mirror and glass to the first non-delta surface ([`visible`]). A new per-ray estimator is a file here, a variant of `method::CameraEstimator` and an
-//! arm of [`estimate`].
+//! mirror and glass to the first non-delta surface ([`visible`]). A new per-ray estimator is a file here, a
+//! variant of `method::CameraEstimator` and an arm of [`estimate`].
 
 pub mod direct;
 pub mod path;
@@ -23,42 +28,43 @@ pub mod visible;
 pub mod volume;
 
 pub use direct::{sample_one_light, shadow_transmittance, unoccluded};
-pub use visible::{VisiblePoint, VolumeEstimate, visible_point, visible_point_in};
+pub use visible::{Segment, VisiblePoint, VolumeEstimate, visible_point, visible_point_in};
 
 use crate::Rgb;
 use crate::math::Ray;
-use crate::math::rng::Sampler;
 use crate::method::{CameraEstimator, Technique};
-use crate::prepare::Prepared;
+use crate::prepare::tracer::Tracer;
 
-/// Radiance arriving along `ray`, by the camera estimator of the prepared job's method
-/// ([`crate::method::Method::technique`]). Counts every traced ray in `rays`. Progressive photon mapping, `vcm`, `bdpt` and
+/// Radiance arriving along `ray` (W·sr⁻¹·m⁻²), by the camera estimator of the tracer's job's method
+/// ([`crate::method::Method::technique`]). Draws from the tracer's stream and counts every traced ray in it. Progressive photon mapping, `vcm`, `bdpt` and
 /// `lt` are not per-ray methods: their pass renderers (`render::progressive`, `render::vcm`) trace their own
 /// light paths; here progressive gives direct light (what its passes add photons to) and the subpath methods
 /// trace full paths (what their passes fall back to in a scene with media).
-pub fn li(prep: &Prepared, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
+pub fn li(tracer: &mut Tracer, ray: Ray) -> Rgb {
+    let prep = tracer.prep;
     let estimator = match prep.settings.integrator.technique(prep.media.is_some(), prep.photons.is_some()) {
         Technique::Samples(e) => e,
         Technique::PhotonPasses => CameraEstimator::Direct,
         Technique::Subpaths(_) => CameraEstimator::Path,
     };
-    estimate(prep, estimator, ray, s, rays)
+    estimate(tracer, estimator, ray)
 }
 
 /// Radiance arriving along `ray` by `estimator`: the one dispatch of the per-ray methods, in scenes with and
 /// without media. A photon-map estimator without the job's maps gives direct light.
-pub fn estimate(prep: &Prepared, estimator: CameraEstimator, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
+pub fn estimate(tracer: &mut Tracer, estimator: CameraEstimator, ray: Ray) -> Rgb {
+    let prep = tracer.prep;
     let depth = prep.settings.max_depth;
-    let path = |direct: bool, s: &mut Sampler, rays: &mut u64| match &prep.media {
-        None => path::li(prep, depth, ray, s, rays, direct),
-        Some(media) => volume::path_li(prep, media, depth, ray, s, rays, direct),
+    let path = |tracer: &mut Tracer, direct: bool| match &prep.media {
+        None => path::li(tracer, depth, ray, direct),
+        Some(media) => volume::path_li(tracer, media, depth, ray, direct),
     };
     match (estimator, &prep.photons) {
-        (CameraEstimator::Path, _) => path(false, s, rays),
+        (CameraEstimator::Path, _) => path(tracer, false),
         (CameraEstimator::Direct, _) | (CameraEstimator::PhotonMap | CameraEstimator::FinalGather, None) => {
-            path(true, s, rays)
+            path(tracer, true)
         }
-        (CameraEstimator::PhotonMap, Some(maps)) => photon_map::li(prep, maps, false, ray, s, rays),
-        (CameraEstimator::FinalGather, Some(maps)) => photon_map::li(prep, maps, true, ray, s, rays),
+        (CameraEstimator::PhotonMap, Some(maps)) => photon_map::li(tracer, maps, false, ray),
+        (CameraEstimator::FinalGather, Some(maps)) => photon_map::li(tracer, maps, true, ray),
     }
 }

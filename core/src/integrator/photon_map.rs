@@ -13,16 +13,16 @@ use crate::Rgb;
 use crate::geometry::Hit;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::Ray;
-use crate::math::rng::Sampler;
 use crate::medium::Medium;
 use crate::photon::{Gather, PhotonMaps, photon_radiance, with_scratch};
-use crate::prepare::Prepared;
+use crate::prepare::tracer::Tracer;
 use glam::Vec3A;
 
 /// The photon methods `photon-map` and `final-gather` along one camera ray: the estimate at the first non-delta
 /// surface, and on through the delta lobe of a mixture surface. `final_gather` chooses Jensen's two passes (shadow
 /// rays, the caustic map and final gathering) over the global map seen directly.
-pub fn li(prep: &Prepared, maps: &PhotonMaps, final_gather: bool, ray: Ray, s: &mut Sampler, rays: &mut u64) -> Rgb {
+pub fn li(tracer: &mut Tracer, maps: &PhotonMaps, final_gather: bool, ray: Ray) -> Rgb {
+    let prep = tracer.prep;
     let settings = &prep.settings;
     let mut l = Rgb::ZERO;
     let mut ray = ray;
@@ -30,26 +30,26 @@ pub fn li(prep: &Prepared, maps: &PhotonMaps, final_gather: bool, ray: Ray, s: &
     let mut medium = prep.media.as_ref().and_then(|m| m.camera);
     // A mixture surface may send the path on through its delta lobe: follow a few such continuations.
     for _ in 0..=settings.max_depth {
-        let vp = walk(prep, maps, ray, medium, s, rays);
+        let vp = walk(tracer, maps, ray, medium);
         l += beta * (vp.le + vp.volume);
         let Some((b, hit, bsdf, wo)) = vp.vertex else { break };
         beta *= b;
         if final_gather {
-            l += beta * sample_one_light(prep, &hit, &bsdf, wo, vp.medium, s, rays, false);
+            l += beta * sample_one_light(tracer, &hit, &bsdf, wo, vp.medium, false);
             if let Some(caustic) = &maps.caustic {
                 l += beta * photon_radiance(caustic, &maps.estimator, &hit, &bsdf, wo);
             }
-            l += beta * gather_indirect(prep, maps, &hit, &bsdf, wo, vp.medium, s, rays);
+            l += beta * gather_indirect(tracer, maps, &hit, &bsdf, wo, vp.medium);
         } else {
             l += beta * photon_radiance(&maps.global, &maps.estimator, &hit, &bsdf, wo);
         }
-        // Continue only through a delta lobe: the non-delta part is what the estimate above counted.
-        let (u, u2) = (s.next_f32(), s.next_2d());
-        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if !bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
+        // Continue only through a delta lobe: the non-delta part is what the estimate above counted. A zero
+        // BSDF value, which `sample_bsdf` refuses, would have ended the path at the test below.
+        let Some(bs) = tracer.sample_bsdf(&bsdf, wo, TransportMode::Radiance) else { break };
+        if !bs.delta {
             break;
         }
-        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
+        beta *= bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance);
         if !beta.is_finite() || beta == Rgb::ZERO {
             break;
         }
@@ -61,20 +61,13 @@ pub fn li(prep: &Prepared, maps: &PhotonMaps, final_gather: bool, ray: Ray, s: &
 
 /// The photon methods' walk to the first non-delta surface ([`visible_point_in`]) from a ray in `medium`,
 /// estimating the volume along the way from the global volume map when there is one.
-pub fn walk(
-    prep: &Prepared,
-    maps: &PhotonMaps,
-    ray: Ray,
-    medium: Option<Medium>,
-    s: &mut Sampler,
-    rays: &mut u64,
-) -> VisiblePoint {
-    let depth = prep.settings.max_depth;
+pub fn walk(tracer: &mut Tracer, maps: &PhotonMaps, ray: Ray, medium: Option<Medium>) -> VisiblePoint {
+    let depth = tracer.prep.settings.max_depth;
     match &maps.volume {
-        Some(v) => visible_point_in(prep, depth, ray, medium, s, rays, &mut |r, m, t_max, s, _| {
-            map_volume_estimate(v, maps.volume_gather, r, m, t_max, s)
+        Some(v) => visible_point_in(tracer, depth, ray, medium, &mut |tracer, segment| {
+            map_volume_estimate(v, maps.volume_gather, segment, &mut tracer.sampler)
         }),
-        None => visible_point_in(prep, depth, ray, medium, s, rays, &mut |_, _, _, _, _| Rgb::ZERO),
+        None => visible_point_in(tracer, depth, ray, medium, &mut |_, _| Rgb::ZERO),
     }
 }
 
@@ -83,32 +76,32 @@ pub fn walk(
 /// these rays is not counted: direct light and caustics have their own estimates. In a scene with media the
 /// gather rays leave into the medium on their side of `hit` (`medium` is the one on `wo`'s side) and add the
 /// global volume map's estimate along the way ([`walk`]).
-#[allow(clippy::too_many_arguments)]
 fn gather_indirect(
-    prep: &Prepared,
+    tracer: &mut Tracer,
     maps: &PhotonMaps,
     hit: &Hit,
     bsdf: &Bsdf,
     wo: Vec3A,
     medium: Option<Medium>,
-    s: &mut Sampler,
-    rays: &mut u64,
 ) -> Rgb {
+    let prep = tracer.prep;
     let settings = &prep.settings;
     let n = settings.photons.final_gather_rays.max(1);
     let mut sum = Rgb::ZERO;
     for _ in 0..n {
-        let (u, u2) = (s.next_f32(), s.next_2d());
+        // Not `Tracer::sample_bsdf`: a gather ray with a zero BSDF value still walks (and draws samples), so
+        // refusing it would change the samples of the rays after it.
+        let (u, u2) = (tracer.sampler.next_f32(), tracer.sampler.next_2d());
         let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { continue };
         if bs.delta || bs.pdf.is_nan() || bs.pdf <= 0.0 {
             continue;
         }
-        let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
+        let w = bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance);
         let ray = hit.spawn_ray(bs.wi);
         let vp = match &prep.media {
-            None => visible_point(prep, settings.max_depth, ray, s, rays),
+            None => visible_point(tracer, settings.max_depth, ray),
             Some(media) => {
-                let vp = walk(prep, maps, ray, media.after(hit, bs.wi, medium), s, rays);
+                let vp = walk(tracer, maps, ray, media.after(hit, bs.wi, medium));
                 sum += w * vp.volume;
                 vp
             }

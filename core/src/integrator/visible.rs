@@ -5,9 +5,8 @@ use crate::Rgb;
 use crate::geometry::{Hit, NONE};
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::Ray;
-use crate::math::rng::Sampler;
 use crate::medium::Medium;
-use crate::prepare::Prepared;
+use crate::prepare::tracer::Tracer;
 use glam::Vec3A;
 
 /// A camera path followed through delta lobes to its first non-delta vertex: the emission it saw on the way,
@@ -23,42 +22,50 @@ pub struct VisiblePoint {
     pub medium: Option<Medium>,
 }
 
-/// What a walk through a medium adds along one segment: given the ray, the medium (not vacuum), the distance
-/// to the surface (∞ when none), the sampler and the ray count, the radiance scattered towards the ray's
-/// origin along the segment, not yet weighted by the path's throughput.
-pub type VolumeEstimate<'a> = dyn FnMut(&Ray, &Medium, f32, &mut Sampler, &mut u64) -> Rgb + 'a;
+/// A stretch of a ray inside one medium: from the ray's origin to the next surface, at `t_max` along it.
+#[derive(Clone, Copy, Debug)]
+pub struct Segment<'a> {
+    /// The ray (unit direction).
+    pub ray: &'a Ray,
+    /// The medium it crosses (not vacuum).
+    pub medium: &'a Medium,
+    /// The distance to the surface in scene units, ∞ when there is none.
+    pub t_max: f32,
+}
+
+/// What a walk through a medium adds along one segment: given the path's tracer and the segment, the radiance
+/// scattered towards the ray's origin along the segment, not yet weighted by the path's throughput.
+pub type VolumeEstimate<'a> = dyn FnMut(&mut Tracer, &Segment) -> Rgb + 'a;
 
 /// Follows `ray` through mirror and glass to the first surface with a non-delta component. At a surface with
 /// both (the mixture), the path continues only if the delta lobe is sampled, and that surface is the vertex.
 /// In a scene without media.
-pub fn visible_point(prep: &Prepared, max_depth: u32, ray: Ray, s: &mut Sampler, rays: &mut u64) -> VisiblePoint {
-    visible_point_in(prep, max_depth, ray, None, s, rays, &mut |_, _, _, _, _| Rgb::ZERO)
+pub fn visible_point(tracer: &mut Tracer, max_depth: u32, ray: Ray) -> VisiblePoint {
+    visible_point_in(tracer, max_depth, ray, None, &mut |_, _| Rgb::ZERO)
 }
 
 /// [`visible_point`] from a ray that starts in `medium`: along every segment in a medium the walk adds
 /// `volume`'s estimate and carries on to the surface with the segment's transmittance (no free flight: every
 /// walk reaches its surface, so photon methods estimate both the volume and the surface behind it).
 pub fn visible_point_in(
-    prep: &Prepared,
+    tracer: &mut Tracer,
     max_depth: u32,
     mut ray: Ray,
     mut medium: Option<Medium>,
-    s: &mut Sampler,
-    rays: &mut u64,
     volume: &mut VolumeEstimate,
 ) -> VisiblePoint {
+    let prep = tracer.prep;
     let mut beta = Rgb::ONE;
     let mut le = Rgb::ZERO;
     let mut in_volume = Rgb::ZERO;
     // Crossings of `interface` surfaces are not bounces.
     let (mut bounces, mut crossings) = (0u32, 0u32);
     while bounces <= max_depth {
-        *rays += 1;
-        let found = prep.geometry.intersect(&ray, f32::INFINITY);
+        let found = tracer.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            in_volume += beta * volume(&ray, &m, t_max, s, rays);
-            beta *= m.transmittance(t_max);
+            in_volume += beta * volume(tracer, &Segment { ray: &ray, medium: &m, t_max });
+            beta *= m.transmittance(&ray, t_max);
             if beta == Rgb::ZERO {
                 break;
             }
@@ -90,12 +97,9 @@ pub fn visible_point_in(
         if bsdf.has_non_delta() {
             return VisiblePoint { le, volume: in_volume, vertex: Some((beta, hit, bsdf, wo)), medium };
         }
-        let (u, u2) = (s.next_f32(), s.next_2d());
-        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if bs.pdf.is_nan() || bs.pdf <= 0.0 {
-            break;
-        }
-        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
+        // A zero BSDF value, which `sample_bsdf` refuses, would have ended the walk at the test below.
+        let Some(bs) = tracer.sample_bsdf(&bsdf, wo, TransportMode::Radiance) else { break };
+        beta *= bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance);
         if !beta.is_finite() || beta == Rgb::ZERO {
             break;
         }

@@ -25,16 +25,17 @@
 //! photons that have bounced at least once.
 
 use super::direct::{sample_one_light, shadow_transmittance};
-use super::path::{emission, roulette};
+use super::path::{PathState, emission, roulette};
+use super::visible::Segment;
 use crate::Rgb;
 use crate::geometry::NONE;
 use crate::light::Light;
 use crate::material::Material;
-use crate::material::bsdf::TransportMode;
 use crate::math::rng::Sampler;
 use crate::math::{Ray, offset_ray_origin_by_error};
-use crate::medium::{Equiangular, HenyeyGreenstein, MAX_CROSSINGS, Media, Medium};
+use crate::medium::{Equiangular, FreeFlight, HenyeyGreenstein, MAX_CROSSINGS, Media, Medium};
 use crate::prepare::Prepared;
+use crate::prepare::tracer::Tracer;
 use glam::Vec3A;
 
 /// Which candidate distances [`in_scattering`] uses: both with MIS (what the renderer does), or one alone
@@ -91,7 +92,7 @@ impl LightPoint {
     /// `I/r²` for a point light, `L·|cos θl|·A/r²` for an area light; with its direction from `x`, the
     /// transmittance and visibility of the segment, and for an area light `|cos θl|/r²` (the factor that turns
     /// a solid-angle pdf at `x` into an area pdf on the light). Counts the shadow ray.
-    fn incident(&self, prep: &Prepared, x: Vec3A, m: &Medium, rays: &mut u64) -> Option<(Vec3A, Rgb, f32)> {
+    fn incident(&self, tracer: &mut Tracer, x: Vec3A, m: &Medium) -> Option<(Vec3A, Rgb, f32)> {
         let (target, li, geometric) = match *self {
             LightPoint::Point { p, intensity } => {
                 let d2 = (p - x).length_squared();
@@ -115,8 +116,8 @@ impl LightPoint {
             return None;
         }
         let wi = d / dist;
-        let tr = match &prep.media {
-            Some(media) => shadow_transmittance(prep, media, x, target, Some(*m), rays),
+        let tr = match &tracer.prep.media {
+            Some(media) => shadow_transmittance(tracer, media, x, target, Some(*m)),
             None => Rgb::ZERO,
         };
         (tr != Rgb::ZERO).then_some((wi, li * tr, geometric))
@@ -145,40 +146,39 @@ fn mis_weight(own: f32, d: Densities) -> f32 {
     o * o / (e * e + f * f + p * p)
 }
 
-/// Single scattering towards the ray's origin along the segment `[0, t_max)` of `ray` in medium `m`:
-/// `∫ T(t)·σs·p(ray.d, ωl)·L_light(x(t), ωl) dt`, estimated with one light point (chosen by power, uniformly by
-/// area) and the candidate distances of `strategy`: an equiangular one towards the light point (Kulla & Fajardo
-/// 2012, eq. 9) and `flight`, a distance the caller sampled with density `flight.1` (the path tracer's free
-/// flight, when it scattered in the segment); `distance_pdf(t)` is that density at any `t`, for the MIS
-/// weights (the power heuristic, Veach 1997 §9.2.4). With `phase_hits`, the caller also counts emission that a
-/// phase-sampled direction from the free-flight point finds (the path tracer), and area-light samples share
-/// the weight with that strategy (`emission_from_medium`). The result is not weighted by the path's throughput.
-#[allow(clippy::too_many_arguments)]
+/// Single scattering towards the ray's origin along `segment` (the stretch `[0, t_max)` of its ray in its
+/// medium): `∫ T(t)·σs·p(ray.d, ωl)·L_light(x(t), ωl) dt`, estimated with one light point (chosen by power,
+/// uniformly by area) and the candidate distances of `strategy`: an equiangular one towards the light point
+/// (Kulla & Fajardo 2012, eq. 9) and `flight`, a distance the caller sampled with density `flight.1` (the path
+/// tracer's free flight, when it scattered in the segment); `distance_pdf(t)` is that density at any `t` (per
+/// scene unit), for the MIS weights (the power heuristic, Veach 1997 §9.2.4). With `phase_hits`, the caller
+/// also counts emission that a phase-sampled direction from the free-flight point finds (the path tracer), and
+/// area-light samples share the weight with that strategy (`emission_from_medium`). Draws the light, the
+/// point on it and the equiangular distance from the tracer's stream, and counts its shadow rays. The result
+/// (W·sr⁻¹·m⁻²) is not weighted by the path's throughput.
 pub fn in_scattering(
-    prep: &Prepared,
-    m: &Medium,
-    ray: &Ray,
-    t_max: f32,
+    tracer: &mut Tracer,
+    segment: &Segment,
     flight: Option<(f32, f32)>,
     distance_pdf: &dyn Fn(f32) -> f32,
     strategy: Strategy,
     phase_hits: bool,
-    s: &mut Sampler,
-    rays: &mut u64,
 ) -> Rgb {
+    let Segment { ray, medium: m, t_max } = *segment;
+    let s = &mut tracer.sampler;
     let (u, u2, ue) = (s.next_f32(), s.next_2d(), s.next_f32());
     if !m.scatters() {
         return Rgb::ZERO;
     }
-    let Some((light, pmf)) = LightPoint::sample(prep, u, u2) else { return Rgb::ZERO };
+    let Some((light, pmf)) = LightPoint::sample(tracer.prep, u, u2) else { return Rgb::ZERO };
     let phase = HenyeyGreenstein { g: m.g };
     let eq = Equiangular::new(ray, t_max, light.position());
     // Per unit of length along the ray and of area on the light (a point light: per unit of length).
     let by_area = if light.area() > 0.0 { pmf / light.area() } else { pmf };
     // The integrand at distance t (divided by the light point's pdf) and the three densities there.
-    let at = |t: f32, rays: &mut u64| -> Option<(Rgb, Densities)> {
+    let at = |t: f32, tracer: &mut Tracer| -> Option<(Rgb, Densities)> {
         let x = ray.at(t);
-        let (wi, li, geometric) = light.incident(prep, x, m, rays)?;
+        let (wi, li, geometric) = light.incident(tracer, x, m)?;
         let p = phase.eval(ray.d, wi);
         let d_t = distance_pdf(t);
         let densities = Densities {
@@ -186,7 +186,7 @@ pub fn in_scattering(
             distance: d_t * by_area,
             phase: if phase_hits { d_t * p * geometric } else { 0.0 },
         };
-        Some((m.transmittance(t) * m.sigma_s * li * p, densities))
+        Some((m.transmittance(ray, t) * m.sigma_s * li * p, densities))
     };
     let mut sum = Rgb::ZERO;
     if strategy != Strategy::Distance
@@ -196,7 +196,7 @@ pub fn in_scattering(
         if t < t_max
             && pdf_e > 0.0
             && pdf_e.is_finite()
-            && let Some((f, d)) = at(t, rays)
+            && let Some((f, d)) = at(t, tracer)
         {
             let w = if strategy == Strategy::Mis { mis_weight(d.equiangular, d) } else { 1.0 };
             sum += f * (w / pdf_e);
@@ -206,7 +206,7 @@ pub fn in_scattering(
         && let Some((t, pdf_d)) = flight
         && t < t_max
         && pdf_d > 0.0
-        && let Some((f, d)) = at(t, rays)
+        && let Some((f, d)) = at(t, tracer)
     {
         let w = if strategy == Strategy::Mis { mis_weight(d.distance, d) } else { 1.0 };
         sum += f * (w / pdf_d);
@@ -251,58 +251,37 @@ fn emission_from_medium(prep: &Prepared, v: &Scattering, hit: &crate::geometry::
 
 /// Volumetric path tracing (`path`), or direct light with specular recursion (`direct_only`): see the module
 /// documentation. Without media it would equal [`super::path::li`]; scenes without media never come here.
-pub fn path_li(
-    prep: &Prepared,
-    media: &Media,
-    max_depth: u32,
-    mut ray: Ray,
-    s: &mut Sampler,
-    rays: &mut u64,
-    direct_only: bool,
-) -> Rgb {
+pub fn path_li(tracer: &mut Tracer, media: &Media, max_depth: u32, mut ray: Ray, direct_only: bool) -> Rgb {
+    let prep = tracer.prep;
     let mut l = Rgb::ZERO;
-    let mut beta = Rgb::ONE;
-    let mut prev_delta = true;
-    let mut prev_pdf = 0.0f32;
+    let mut path = PathState::new();
     // The last vertex was in a medium: emission found next shares its weight with the segment's light samples.
     let mut prev_medium: Option<Scattering> = None;
-    let mut finishing = false;
-    let mut eta_scale = 1.0f32;
     let mut medium = media.camera;
     let mut depth = 0u32;
     // `interface` surfaces crossed since the last vertex, and the distance from that vertex to the ray's origin.
     let (mut crossings, mut travelled) = (0u32, 0.0f32);
     while depth <= max_depth {
-        *rays += 1;
-        let found = prep.geometry.intersect(&ray, f32::INFINITY);
+        let found = tracer.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
-            let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            let (uc, u) = (s.next_f32(), s.next_f32());
-            let flight = m.sample_distance(t_max, uc, u);
+            let segment = Segment { ray: &ray, medium: &m, t_max: found.as_ref().map_or(f32::INFINITY, |h| h.t) };
+            let flight = m.sample_distance(&ray, segment.t_max, &mut tracer.sampler);
             // Light scattered once at a point of this segment: like light sampling at a surface, only below the
             // last bounce; the phase-sampled strategy exists only where the path goes on from a scattering.
-            if !finishing && depth < max_depth {
-                let at = flight.scattered.then_some((flight.t, flight.pdf));
-                let pdf = |t: f32| m.distance_pdf(t);
-                let phase_hits = !direct_only;
-                l += beta * in_scattering(prep, &m, &ray, t_max, at, &pdf, Strategy::Mis, phase_hits, s, rays);
+            if !path.finishing && depth < max_depth {
+                l += path.beta * single_scattering(tracer, &segment, &flight, !direct_only);
             }
-            beta *= flight.weight;
-            if !beta.is_finite() || beta == Rgb::ZERO {
+            path.beta *= flight.weight;
+            if !path.beta.is_finite() || path.beta == Rgb::ZERO {
                 break;
             }
             if flight.scattered {
-                if finishing || direct_only || depth == max_depth {
+                if path.finishing || direct_only || depth == max_depth {
                     break;
                 }
-                let ps = HenyeyGreenstein { g: m.g }.sample(ray.d, s.next_2d());
-                prev_delta = false;
-                prev_medium = Some(Scattering { ray, t_max, t: flight.t, distance_pdf: flight.pdf, phase_pdf: ps.pdf });
-                prev_pdf = ps.pdf;
-                if !roulette(&mut beta, eta_scale, depth, s) {
-                    break;
-                }
-                ray = Ray::new(ray.at(flight.t), ps.wi);
+                let Some((next, vertex)) = scatter(tracer, &segment, &flight, &mut path, depth) else { break };
+                prev_medium = Some(vertex);
+                ray = next;
                 depth += 1;
                 (crossings, travelled) = (0, 0.0);
                 continue;
@@ -325,12 +304,12 @@ pub fn path_li(
         let wo = -ray.d;
         let (le, w) = match &prev_medium {
             Some(v) => emission_from_medium(prep, v, &hit, &ray),
-            None => emission(prep, &hit, &ray, prev_delta, prev_pdf),
+            None => emission(prep, &hit, &ray, path.prev_delta, path.prev_pdf),
         };
         if le != Rgb::ZERO {
-            l += beta * le * w;
+            l += path.beta * le * w;
         }
-        if finishing || depth == max_depth {
+        if path.finishing || depth == max_depth {
             break;
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
@@ -339,56 +318,67 @@ pub fn path_li(
             break;
         }
         if bsdf.has_non_delta() {
-            l += beta * sample_one_light(prep, &hit, &bsdf, wo, medium, s, rays, true);
+            l += path.beta * sample_one_light(tracer, &hit, &bsdf, wo, medium, true);
         }
-        let (u, u2) = (s.next_f32(), s.next_2d());
-        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Radiance) else { break };
-        if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO {
-            break;
-        }
-        beta *= bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf);
-        prev_delta = bs.delta;
-        prev_pdf = bs.pdf;
+        let Some(wi) = path.bounce(tracer, &bsdf, wo, depth, direct_only) else { break };
         prev_medium = None;
-        if direct_only && !bs.delta {
-            finishing = true;
-        } else {
-            eta_scale *= bs.eta * bs.eta;
-            if !roulette(&mut beta, eta_scale, depth, s) {
-                break;
-            }
-        }
-        if !beta.is_finite() {
-            break;
-        }
-        medium = media.after(&hit, bs.wi, medium);
-        ray = hit.spawn_ray(bs.wi);
+        medium = media.after(&hit, wi, medium);
+        ray = hit.spawn_ray(wi);
         depth += 1;
         (crossings, travelled) = (0, 0.0);
     }
     l
 }
 
-/// A distance in the segment `[0, t_max)` in `m` sampled from the truncated free-flight density, its density,
-/// and the weight `T(t)/p(t)` that turns a volume estimate there into the segment's integral; `None` when the
-/// medium does not scatter.
-pub fn segment_point(m: &Medium, t_max: f32, s: &mut Sampler) -> Option<(f32, f32, Rgb)> {
-    let (uc, u) = (s.next_f32(), s.next_f32());
-    let (t, pdf) = m.sample_segment(t_max, uc, u)?;
-    Some((t, pdf, m.transmittance(t) / pdf))
+/// The path tracer's single scattering along `segment` ([`in_scattering`] with both distances), the free
+/// flight's distance as the second candidate where it scattered; `phase_hits` as there.
+fn single_scattering(tracer: &mut Tracer, segment: &Segment, flight: &FreeFlight, phase_hits: bool) -> Rgb {
+    let at = flight.scattered.then_some((flight.t, flight.pdf));
+    let (ray, m) = (segment.ray, segment.medium);
+    let pdf = |t: f32| m.distance_pdf(ray, t);
+    in_scattering(tracer, segment, at, &pdf, Strategy::Mis, phase_hits)
 }
 
-/// The photon methods' volume estimate along a segment from a volume photon map (`photon-map`,
+/// The path tracer's scattering in a medium at the end of `flight` along `segment`, at bounce `depth`: a
+/// Henyey–Greenstein direction (its weight `p/pdf` is 1), then Russian roulette as at a surface. The ray that
+/// leaves and the vertex (for the MIS weight of emission found next), or `None` where the path ends.
+fn scatter(
+    tracer: &mut Tracer,
+    segment: &Segment,
+    flight: &FreeFlight,
+    path: &mut PathState,
+    depth: u32,
+) -> Option<(Ray, Scattering)> {
+    let ray = *segment.ray;
+    let ps = HenyeyGreenstein { g: segment.medium.g }.sample(ray.d, tracer.sampler.next_2d());
+    path.prev_delta = false;
+    path.prev_pdf = ps.pdf;
+    if !roulette(&mut path.beta, path.eta_scale, depth, &mut tracer.sampler) {
+        return None;
+    }
+    let vertex = Scattering { ray, t_max: segment.t_max, t: flight.t, distance_pdf: flight.pdf, phase_pdf: ps.pdf };
+    Some((Ray::new(ray.at(flight.t), ps.wi), vertex))
+}
+
+/// A distance in `segment` sampled from the truncated free-flight density ([`Medium::sample_segment`], two
+/// samples from `s`), its density (per scene unit), and the weight `T(t)/p(t)` that turns a volume estimate
+/// there into the segment's integral; `None` when the medium does not scatter.
+pub fn segment_point(segment: &Segment, s: &mut Sampler) -> Option<(f32, f32, Rgb)> {
+    let Segment { ray, medium: m, t_max } = *segment;
+    let (t, pdf) = m.sample_segment(ray, t_max, s)?;
+    Some((t, pdf, m.transmittance(ray, t) / pdf))
+}
+
+/// The photon methods' volume estimate along `segment` from a volume photon map (`photon-map`,
 /// `final-gather`): at one point sampled by [`segment_point`], `T(t)/p(t) · Σ p(ωp, ωo)·Φp / V`.
 pub fn map_volume_estimate(
     map: &crate::photon::PhotonMap,
     gather: crate::photon::Gather,
-    ray: &Ray,
-    m: &Medium,
-    t_max: f32,
+    segment: &Segment,
     s: &mut Sampler,
 ) -> Rgb {
-    let Some((t, _, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
-    let l = w * crate::photon::volume_radiance(map, ray.at(t), ray.d, m.g, gather);
+    let Some((t, _, w)) = segment_point(segment, s) else { return Rgb::ZERO };
+    let ray = segment.ray;
+    let l = w * crate::photon::volume_radiance(map, ray.at(t), ray.d, segment.medium.g, gather);
     if l.is_finite() { l } else { Rgb::ZERO }
 }

@@ -193,6 +193,20 @@ impl Bsdf {
         if den > 0.0 { wo.dot(self.frame.n).abs() / den } else { 0.0 }
     }
 
+    /// The factor by which a path that sampled `bs` from `wo` multiplies its throughput: `f·|wi·ns| / pdf`,
+    /// with the shading normal's cosine (the estimator of pbrt-v4 §13.1, written with shading normals), and for
+    /// a path that carries importance (photons, light subpaths) times [`Bsdf::adjoint_correction`] (Veach 1997,
+    /// eq. 5.17). `pdf` is the density the direction was drawn with: `bs.pdf`, or `bs.pdf` times a Russian
+    /// roulette probability that the caller folds into the sample (vcm's subpaths). Unitless, per channel.
+    #[inline]
+    pub fn sample_weight(&self, wo: Vec3A, bs: &BsdfSample, pdf: f32, mode: TransportMode) -> Rgb {
+        let w = bs.wi.dot(self.frame.n).abs() / pdf;
+        match mode {
+            TransportMode::Radiance => bs.f * w,
+            TransportMode::Importance => bs.f * (w * self.adjoint_correction(wo, bs.wi)),
+        }
+    }
+
     /// The solid-angle density with which [`Bsdf::sample`] draws `wi` from its non-delta lobes, lobe selection
     /// probabilities included. Zero when the BSDF has no non-delta lobe.
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {

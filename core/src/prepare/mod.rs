@@ -1,13 +1,15 @@
 //! From a parsed [`Scene`] to the [`Prepared`] value that renders, in steps that callers compose:
 //! [`Prepared::new`] loads meshes, gathers primitives under a BVH, resolves materials to indices and builds the
 //! lights; [`Prepared::with_photon_maps`] traces the photon maps the method needs ([`photons`]); [`blobs`]
-//! encodes the result for the wire and the caches.
+//! encodes the result for the wire and the caches. A path traced in a prepared job carries it in a
+//! [`tracer::Tracer`], with its sample stream and ray count.
 
 pub mod blobs;
 pub mod budget;
 pub mod lod;
 pub mod photons;
 pub mod textures;
+pub mod tracer;
 
 use crate::Rgb;
 use crate::camera::Camera;

@@ -26,6 +26,7 @@ use crate::medium::HenyeyGreenstein;
 use crate::method::StaticMaps;
 use crate::photon::{Photon, PhotonMap, PhotonMapError, PhotonMaps, precompute_irradiance};
 use crate::prepare::budget::BYTES_PER_PHOTON;
+use crate::prepare::tracer::Tracer;
 use crate::run::{Cancel, Guard, Meter, NEVER, RunError};
 use crate::scene::SceneError;
 use rayon::prelude::*;
@@ -136,9 +137,9 @@ pub fn trace_photons_guarded(
                 for (e, v) in emitted.iter_mut().zip(phi.to_array()) {
                     *e += f64::from(v);
                 }
-                let mut s = Sampler::for_light_path(prep.settings.seed, pass, l as u64, i - starts[l]);
+                let s = Sampler::for_light_path(prep.settings.seed, pass, l as u64, i - starts[l]);
                 let before = out.len() + volume.len();
-                trace_path(prep, l, phi, &mut s, kind, &mut out, &mut volume);
+                trace_path(&mut Tracer::new(prep, s), l, phi, kind, &mut out, &mut volume);
                 meter.add((out.len() + volume.len() - before) as u64 * BYTES_PER_PHOTON)?;
             }
             Ok((out, volume, emitted))
@@ -155,30 +156,29 @@ pub fn trace_photons_guarded(
     Ok(traced)
 }
 
-/// Emits one photon from light `light` (an index into the light set) with power `phi` and follows it, appending
-/// the surface photons it stores to `out` and, in a scene with media, the photons it scatters in a medium to
-/// `volume`.
+/// Emits one photon from light `light` (an index into the light set) with power `phi` (W per channel), drawing
+/// from the tracer's stream, and follows it, appending the surface photons it stores to `out` and, in a scene
+/// with media, the photons it scatters in a medium to `volume`.
 ///
 /// In a medium the photon samples a free flight ([`crate::medium::Medium::sample_distance`]); where it scatters
 /// it stores its scattered power `w·Φ` (`w = σs·T/p`, the albedo in a grey medium) as a volume photon, then
 /// survives Russian roulette with probability `min(1, max(w))`, so its power never grows in a grey medium, and
 /// leaves along a Henyey–Greenstein direction. A photon that crosses the segment carries `T/P(pass)` (1 in a
 /// grey medium, the transmittance in one that only absorbs).
-#[allow(clippy::too_many_arguments)]
 pub fn trace_path(
-    prep: &Prepared,
+    tracer: &mut Tracer,
     light: usize,
     phi: Rgb,
-    s: &mut Sampler,
     kind: PhotonKind,
     out: &mut Vec<Photon>,
     volume: &mut Vec<Photon>,
 ) {
+    let prep = tracer.prep;
     let Some(l) = prep.lights.lights.get(light) else { return };
     let media = prep.media.as_ref();
     let mut medium = media.and_then(|m| m.lights.get(light).copied().flatten());
     // The light's choice is the caller's (photons per light in proportion to power): its densities are unused.
-    let Some(e) = l.sample_le(&prep.geometry, 1.0, s) else { return };
+    let Some(e) = l.sample_le(&prep.geometry, 1.0, &mut tracer.sampler) else { return };
     if let (Some(media), Some((object, n))) = (media, e.surface) {
         medium = media.leaving(object, n, e.ray.d, medium);
     }
@@ -187,33 +187,22 @@ pub fn trace_path(
     let mut specular_only = true;
     let (mut depth, mut crossings) = (0u32, 0u32);
     while depth < prep.settings.max_depth {
+        // Photon tracing counts paths, not rays (see `Tracer::rays`).
         let found = prep.geometry.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
             let t_max = found.as_ref().map_or(f32::INFINITY, |h| h.t);
-            let (uc, u) = (s.next_f32(), s.next_f32());
-            let flight = m.sample_distance(t_max, uc, u);
+            let flight = m.sample_distance(&ray, t_max, &mut tracer.sampler);
             if flight.scattered {
-                let w = flight.weight;
-                let keep = match kind {
-                    PhotonKind::Global => true,
-                    PhotonKind::Caustic => specular_only && depth > 0,
-                    PhotonKind::Indirect => depth > 0,
-                };
                 let x = ray.at(flight.t);
-                if keep {
-                    volume.push(Photon::new(x, -ray.d, -ray.d, power * w, NONE));
+                if keeps(kind, specular_only, depth) {
+                    volume.push(Photon::new(x, -ray.d, -ray.d, power * flight.weight, NONE));
                 }
-                let q = w.max_element().min(1.0);
-                if q.is_nan() || q <= 0.0 || s.next_f32() >= q || kind == PhotonKind::Caustic {
-                    // Past a scattering in a medium no photon of this path is a caustic one.
-                    return;
-                }
-                power *= w / q;
-                if !power.is_finite() {
+                // Past a scattering in a medium no photon of this path is a caustic one.
+                if !survives(&mut power, flight.weight, &mut tracer.sampler) || kind == PhotonKind::Caustic {
                     return;
                 }
                 specular_only = false;
-                let wi = HenyeyGreenstein { g: m.g }.sample(ray.d, s.next_2d()).wi;
+                let wi = HenyeyGreenstein { g: m.g }.sample(ray.d, tracer.sampler.next_2d()).wi;
                 ray = Ray::new(x, wi);
                 (depth, crossings) = (depth + 1, 0);
                 continue;
@@ -243,33 +232,18 @@ pub fn trace_path(
             // The back of a one-sided surface absorbs the photon; it is not stored.
             return;
         }
-        if bsdf.has_non_delta() {
-            let keep = match kind {
-                PhotonKind::Global => true,
-                PhotonKind::Caustic => specular_only && depth > 0,
-                PhotonKind::Indirect => depth > 0,
-            };
-            if keep {
-                // Store the normal on the side the photon arrived from, and the flux as the shading normal
-                // sees it (`Bsdf::arrival_correction`), so that density estimates match the path tracer on
-                // smooth-shaded surfaces.
-                let n = hit.normal_towards(wo);
-                out.push(Photon::new(hit.p, wo, n, power * bsdf.arrival_correction(wo), hit.object));
-            }
+        if bsdf.has_non_delta() && keeps(kind, specular_only, depth) {
+            // Store the normal on the side the photon arrived from, and the flux as the shading normal sees it
+            // (`Bsdf::arrival_correction`), so that density estimates match the path tracer on smooth-shaded
+            // surfaces.
+            let n = hit.normal_towards(wo);
+            out.push(Photon::new(hit.p, wo, n, power * bsdf.arrival_correction(wo), hit.object));
         }
-        let (u, u2) = (s.next_f32(), s.next_2d());
-        let Some(bs) = bsdf.sample(wo, u, u2, TransportMode::Importance) else { return };
-        if bs.pdf.is_nan() || bs.pdf <= 0.0 {
-            return;
-        }
+        // A zero BSDF value, which `sample_bsdf` refuses, would have ended the path in `survives` (q = 0).
+        let Some(bs) = tracer.sample_bsdf(&bsdf, wo, TransportMode::Importance) else { return };
         // Photons carry flux: the adjoint of the shading-normal BSDF (Veach 1997, eq. 5.17).
-        let w = bs.f * (bs.wi.dot(bsdf.frame.n).abs() / bs.pdf * bsdf.adjoint_correction(wo, bs.wi));
-        let q = w.max_element().min(1.0);
-        if q.is_nan() || q <= 0.0 || s.next_f32() >= q {
-            return;
-        }
-        power *= w / q;
-        if !power.is_finite() {
+        let w = bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Importance);
+        if !survives(&mut power, w, &mut tracer.sampler) {
             return;
         }
         specular_only &= bs.delta;
@@ -283,6 +257,31 @@ pub fn trace_path(
         ray = hit.spawn_ray(bs.wi);
         (depth, crossings) = (depth + 1, 0);
     }
+}
+
+/// Whether a photon of `kind` is stored at bounce `depth` (0: straight from the light) of a path whose bounces
+/// so far were all specular (`specular_only`).
+#[inline]
+fn keeps(kind: PhotonKind, specular_only: bool, depth: u32) -> bool {
+    match kind {
+        PhotonKind::Global => true,
+        PhotonKind::Caustic => specular_only && depth > 0,
+        PhotonKind::Indirect => depth > 0,
+    }
+}
+
+/// Photon tracing's Russian roulette on a scattering of weight `w` (`f·|cos|/pdf` at a surface, `σs·T/p` in a
+/// medium): the photon survives with probability `q = min(1, max(w))` and its power becomes `power·w/q`, so it
+/// never grows where `w ≤ 1`. Whether the photon goes on: it survived and its power is finite. Draws one
+/// sample, unless `q` is not positive (or NaN).
+#[inline]
+fn survives(power: &mut Rgb, w: Rgb, s: &mut Sampler) -> bool {
+    let q = w.max_element().min(1.0);
+    if q.is_nan() || q <= 0.0 || s.next_f32() >= q {
+        return false;
+    }
+    *power *= w / q;
+    power.is_finite()
 }
 
 impl Prepared {

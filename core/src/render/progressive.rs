@@ -24,14 +24,13 @@ use super::samples::{camera_sample, for_each_pixel};
 use super::sums::{BlockSums, add_fixed, finite_or_zero};
 use crate::Rgb;
 use crate::integrator::volume::{Strategy, in_scattering, segment_point};
-use crate::integrator::{sample_one_light, visible_point, visible_point_in};
+use crate::integrator::{Segment, sample_one_light, visible_point, visible_point_in};
 use crate::math::Ray;
-use crate::math::rng::Sampler;
-use crate::medium::Medium;
 use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux, volume_radiance};
 use crate::prepare::Prepared;
 use crate::prepare::budget::{BYTES_PER_PHOTON, passes_at_once};
 use crate::prepare::photons::{PhotonKind, trace_photons_guarded, volume_map};
+use crate::prepare::tracer::Tracer;
 use crate::run::{Cancel, Guard, Meter, RunError};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -162,48 +161,49 @@ fn render_pass(
     let volume = maps.volume.as_ref().map(|v| (v, prep.volume_radius() * crate::math::fmath::cbrt(ratio)));
     let width = prep.camera.width as usize;
     let pixel = |x, y, px: &mut [i64], rays: &mut u64| {
-        add_fixed(px, pixel_estimate(prep, maps.surface.as_ref(), volume, &est, r2, (x, y), pass, rays));
+        let (ray, s) = camera_sample(prep, prep.settings.seed, x, y, pass);
+        let mut tracer = Tracer::new(prep, s);
+        add_fixed(px, pixel_estimate(&mut tracer, ray, maps.surface.as_ref(), volume, &est, r2));
+        *rays += tracer.rays;
     };
     for_each_pixel(width, rows, sums, cancel, pixel)
 }
 
-/// Pass `pass`'s radiance estimate at pixel `xy`: emission and light sampling at the visible point, plus the
-/// box-kernel photon estimate `β · Σ f·Φ / (π r²)` there (Knaus & Zwicker 2011, eq. 4). In a scene with media,
-/// each medium segment of the camera walk adds single scattering ([`in_scattering`]) and the volume map's box
-/// estimate at radius `volume.1` at one point of the segment ([`segment_point`]). Non-finite parts count as zero.
-#[allow(clippy::too_many_arguments)]
+/// A pass's radiance estimate along the camera ray `ray` of one pixel sample: emission and light sampling at
+/// the visible point, plus the box-kernel photon estimate `β · Σ f·Φ / (π r²)` of `map` at squared radius `r2`
+/// there (Knaus & Zwicker 2011, eq. 4). In a scene with media, each medium segment of the camera walk adds
+/// single scattering ([`in_scattering`]) and the volume map's box estimate at radius `volume.1` at one point of
+/// the segment ([`segment_point`]). Non-finite parts count as zero.
 fn pixel_estimate(
-    prep: &Prepared,
+    tracer: &mut Tracer,
+    ray: Ray,
     map: Option<&PhotonMap>,
     volume: Option<(&PhotonMap, f32)>,
     est: &Estimator,
     r2: f32,
-    (x, y): (u32, u32),
-    pass: u32,
-    rays: &mut u64,
 ) -> Rgb {
-    let settings = &prep.settings;
-    let seed = settings.seed;
-    let (ray, mut s) = camera_sample(prep, seed, x, y, pass);
+    let prep = tracer.prep;
+    let max_depth = prep.settings.max_depth;
     let vp = match &prep.media {
-        None => visible_point(prep, settings.max_depth, ray, &mut s, rays),
+        None => visible_point(tracer, max_depth, ray),
         Some(media) => {
-            let mut along = |r: &Ray, m: &Medium, t_max: f32, s: &mut Sampler, rays: &mut u64| -> Rgb {
-                let Some((t, pdf, w)) = segment_point(m, t_max, s) else { return Rgb::ZERO };
-                let mass = m.segment_mass(t_max);
-                let density = |x: f32| m.distance_pdf(x) / mass;
-                let direct = in_scattering(prep, m, r, t_max, Some((t, pdf)), &density, Strategy::Mis, false, s, rays);
+            let mut along = |tracer: &mut Tracer, segment: &Segment| -> Rgb {
+                let Some((t, pdf, w)) = segment_point(segment, &mut tracer.sampler) else { return Rgb::ZERO };
+                let (r, m) = (segment.ray, segment.medium);
+                let mass = m.segment_mass(r, segment.t_max);
+                let density = |x: f32| m.distance_pdf(r, x) / mass;
+                let direct = in_scattering(tracer, segment, Some((t, pdf)), &density, Strategy::Mis, false);
                 let indirect = match volume {
                     Some((v, radius)) => w * volume_radiance(v, r.at(t), r.d, m.g, Gather::Radius { radius }),
                     None => Rgb::ZERO,
                 };
                 finite_or_zero(direct) + finite_or_zero(indirect)
             };
-            visible_point_in(prep, settings.max_depth, ray, media.camera, &mut s, rays, &mut along)
+            visible_point_in(tracer, max_depth, ray, media.camera, &mut along)
         }
     };
     let Some((beta, hit, bsdf, wo)) = vp.vertex else { return finite_or_zero(vp.le) + finite_or_zero(vp.volume) };
-    let ld = vp.le + beta * sample_one_light(prep, &hit, &bsdf, wo, vp.medium, &mut s, rays, false);
+    let ld = vp.le + beta * sample_one_light(tracer, &hit, &bsdf, wo, vp.medium, false);
     let ld = finite_or_zero(ld) + finite_or_zero(vp.volume);
     let Some(map) = map else { return finite_or_zero(ld) };
     let (phi, m) = photon_flux(map, est, &hit, &bsdf, wo);

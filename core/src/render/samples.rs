@@ -16,6 +16,7 @@ use crate::math::Ray;
 use crate::math::rng::Sampler;
 use crate::method::CameraEstimator;
 use crate::prepare::Prepared;
+use crate::prepare::tracer::Tracer;
 use crate::run::{Cancel, RunError};
 use glam::Vec2;
 use rayon::prelude::*;
@@ -102,8 +103,11 @@ pub(super) fn render(
 
 /// Sample `i` of pixel `(x, y)`: the radiance `estimator` returns along its camera ray.
 fn pixel_sample(prep: &Prepared, estimator: CameraEstimator, x: u32, y: u32, i: u32, rays: &mut u64) -> Rgb {
-    let (ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, i);
-    estimate(prep, estimator, ray, &mut s, rays)
+    let (ray, s) = camera_sample(prep, prep.settings.seed, x, y, i);
+    let mut tracer = Tracer::new(prep, s);
+    let l = estimate(&mut tracer, estimator, ray);
+    *rays += tracer.rays;
+    l
 }
 
 /// Camera ray and sample stream of sample `i` in pixel `(x, y)`. The stream's first draw places the sample in

@@ -20,7 +20,8 @@
 //! each split of it into a light and a camera subpath, joined by a connection or by a merge — using
 //! Georgiev's recursive quantities `dVCM`, `dVC`, `dVM` carried along each subpath ("Implementing Vertex
 //! Connection and Merging", technical report, Saarland University 2012, eqs. 31–55; we follow its numbering in
-//! the comments). A merge is the photon-map estimate with the photon maps' kernel (`render.photons.kernel`)
+//! the comments; the quantities and the weights are in the file `vcm/mis.rs`: [`Iteration`], [`MisState`],
+//! [`weights`]). A merge is the photon-map estimate with the photon maps' kernel (`render.photons.kernel`)
 //! at radius `r_p`, with acceptance probability `π r² p_A` in the weights (the report's `η_VCM = π r² N`).
 //!
 //! The radius shrinks as progressive photon mapping's (Knaus & Zwicker 2011, eq. 15): `r_p² = r_0² ·
@@ -44,6 +45,10 @@
 //! one camera sample per pass: the subpaths here do not cross media. Light tracing (`lt`) sees nothing through
 //! mirror or glass directly in front of the camera, as no light subpath can connect there.
 
+mod mis;
+
+pub use mis::{Iteration, MisState, weights};
+
 use super::radius::RadiusSequence;
 use super::samples::{camera_sample, for_each_pixel};
 use super::sums::{BlockSums, MAX_UNIT_SUM, finite_or_zero, to_fixed};
@@ -55,9 +60,9 @@ use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::{Domain, Sampler};
 use crate::math::{Ray, offset_ray_origin_by_error};
 use crate::method::Techniques;
-use crate::photon::Kernel;
 use crate::prepare::Prepared;
 use crate::prepare::budget::{LIGHT_VERTEX_BYTES, MERGE_TREE_BYTES_PER_VERTEX, SPLAT_BYTES};
+use crate::prepare::tracer::Tracer;
 use crate::run::{Guard, RunError};
 use glam::Vec3A;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
@@ -68,113 +73,6 @@ use std::time::Instant;
 
 /// Light subpaths traced per parallel chunk (fixed, so the vertex order does not depend on the thread pool).
 const CHUNK: usize = 1024;
-
-/// The multiple-importance heuristic's exponent applied to a density (or a ratio of densities): the power
-/// heuristic with β = 2 (Veach 1997, §9.2.4), the path tracer's.
-#[inline]
-fn mis(x: f32) -> f32 {
-    x * x
-}
-
-/// The constants of one iteration (the report's §3.2 and SmallVCM's `InitIteration`).
-#[derive(Clone, Copy, Debug)]
-pub struct Iteration {
-    /// The techniques.
-    pub techniques: Techniques,
-    /// Light subpaths per iteration, `N` (the number of pixels).
-    pub light_paths: f32,
-    /// Squared merging radius `r²`.
-    pub r2: f32,
-    /// `mis(η_VCM)`, `η_VCM = π r² N`, or 0 without merging: merging's weight relative to a connection.
-    pub vm_weight: f32,
-    /// `mis(1/η_VCM)`, or 0 without connections.
-    pub vc_weight: f32,
-    /// The merge estimate's normalisation, `1 / (r² N)` (the kernel supplies its own `1/π`).
-    pub vm_normalization: f32,
-    /// Kernel of the merges.
-    pub kernel: Kernel,
-    /// The longest path, in segments (`render.max_depth + 1`).
-    pub max_len: u32,
-}
-
-impl Iteration {
-    /// The constants of an iteration of `techniques` over `light_paths` subpaths at squared radius `r2`.
-    pub fn new(techniques: Techniques, light_paths: f32, r2: f32, kernel: Kernel, max_depth: u32) -> Self {
-        let eta_vcm = PI * r2 * light_paths;
-        let vm_weight = if techniques.merge && eta_vcm > 0.0 { mis(eta_vcm) } else { 0.0 };
-        let vc_weight = if techniques.connect && techniques.merge && eta_vcm > 0.0 { mis(1.0 / eta_vcm) } else { 0.0 };
-        let vm_normalization = if r2 > 0.0 && light_paths > 0.0 { 1.0 / (r2 * light_paths) } else { 0.0 };
-        Self {
-            techniques,
-            light_paths,
-            r2,
-            vm_weight,
-            vc_weight,
-            vm_normalization,
-            kernel,
-            max_len: max_depth.saturating_add(1),
-        }
-    }
-}
-
-/// The recursive MIS quantities of a subpath at its last vertex (the report's eqs. 31–36), and its length.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct MisState {
-    /// `dVCM`.
-    pub d_vcm: f32,
-    /// `dVC`.
-    pub d_vc: f32,
-    /// `dVM`.
-    pub d_vm: f32,
-    /// Segments from the subpath's origin (the light or the camera) to its last vertex.
-    pub len: u32,
-}
-
-impl MisState {
-    /// The quantities of a light subpath leaving the light (eqs. 31–33; delta lights, eqs. 48–50), before its
-    /// first hit: `direct_pdf_a` is the area density of the light point as next-event estimation picks it,
-    /// `emission_pdf_w` the density of emitting this point and direction (the product of the point's area
-    /// density and the direction's solid-angle density), `cos_light` the cosine at the light.
-    pub fn emitted(it: &Iteration, direct_pdf_a: f32, emission_pdf_w: f32, cos_light: f32, delta: bool) -> Self {
-        let d_vc = if delta { 0.0 } else { mis(cos_light / emission_pdf_w) };
-        Self { d_vcm: mis(direct_pdf_a / emission_pdf_w), d_vc, d_vm: d_vc * it.vc_weight, len: 1 }
-    }
-
-    /// The quantities of a camera subpath whose first direction has solid-angle density `camera_pdf_w` (the
-    /// camera's importance per pixel), before its first hit.
-    pub fn from_camera(it: &Iteration, camera_pdf_w: f32) -> Self {
-        Self { d_vcm: mis(it.light_paths / camera_pdf_w), d_vc: 0.0, d_vm: 0.0, len: 1 }
-    }
-
-    /// Completes the quantities at a new vertex reached over distance `dist`, whose geometric normal makes
-    /// `|cos| = cos_in` with the arriving direction (the area-measure part of eqs. 31–36).
-    #[inline]
-    pub fn arrive(&mut self, dist: f32, cos_in: f32) {
-        self.d_vcm *= mis(dist * dist);
-        let c = mis(cos_in);
-        self.d_vcm /= c;
-        self.d_vc /= c;
-        self.d_vm /= c;
-    }
-
-    /// The quantities after sampling the next direction: `cos_out = |wi·ng|`, the forward density `pdf` and the
-    /// reverse density `pdf_rev` (both in solid angle, Russian roulette included), or for a delta lobe
-    /// (`delta`) only the cosine (eqs. 53–55: the delta's densities cancel and no technique ends here).
-    #[inline]
-    pub fn scatter(&mut self, it: &Iteration, cos_out: f32, pdf: f32, pdf_rev: f32, delta: bool) {
-        if delta {
-            self.d_vcm = 0.0;
-            self.d_vc *= mis(cos_out);
-            self.d_vm *= mis(cos_out);
-        } else {
-            let g = mis(cos_out / pdf);
-            self.d_vc = g * (self.d_vc * mis(pdf_rev) + self.d_vcm + it.vm_weight);
-            self.d_vm = g * (self.d_vm * mis(pdf_rev) + self.d_vcm * it.vc_weight + 1.0);
-            self.d_vcm = mis(1.0 / pdf);
-        }
-        self.len += 1;
-    }
-}
 
 /// A stored light-subpath vertex.
 #[derive(Clone, Copy, Debug)]
@@ -244,8 +142,10 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
                 guard.cancel.check()?;
                 meter.check()?;
                 let (v0, s0) = (vertices.len(), splats.len());
-                let mut s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
-                light_subpath(prep, it, &mut s, &mut vertices, &mut splats, &mut rays);
+                let s = Sampler::new(prep.settings.seed, Domain::LightSubpath, u64::from(pass), 0, j as u64);
+                let mut tracer = Tracer::new(prep, s);
+                light_subpath(&mut tracer, it, &mut vertices, &mut splats);
+                rays += tracer.rays;
                 ends.push(vertices.len() as u32);
                 let (dv, ds) = ((vertices.len() - v0) as u64, (splats.len() - s0) as u64);
                 meter.add(stored_bytes(it, 1, dv, ds))?;
@@ -272,34 +172,36 @@ fn stored_bytes(it: &Iteration, subpaths: u64, vertices: u64, splats: u64) -> u6
     vertices * (2 * LIGHT_VERTEX_BYTES + tree) + splats * 2 * SPLAT_BYTES + subpaths * 8
 }
 
-/// Emission of a light subpath: the first ray, the throughput, and the MIS quantities before the first hit
+/// Emission of a light subpath: the first ray, and the throughput and MIS quantities before the first hit
 /// (eqs. 31–33, with delta lights as eqs. 48–50).
-fn emit(prep: &Prepared, it: &Iteration, s: &mut Sampler) -> Option<(Ray, Rgb, MisState)> {
-    let (i, pick) = prep.lights.choose(s.next_f32())?;
-    let e = prep.lights.lights.get(i)?.sample_le(&prep.geometry, pick, s)?;
+fn emit(tracer: &mut Tracer, it: &Iteration) -> Option<(Ray, Subpath)> {
+    let prep = tracer.prep;
+    let (i, pick) = prep.lights.choose(tracer.sampler.next_f32())?;
+    let e = prep.lights.lights.get(i)?.sample_le(&prep.geometry, pick, &mut tracer.sampler)?;
     if !(e.pdf_w > 0.0 && e.beta.is_finite()) {
         return None;
     }
-    Some((e.ray, e.beta, MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta)))
+    Some((e.ray, Subpath { beta: e.beta, mis: MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta) }))
+}
+
+/// A subpath after its last vertex: its throughput and its MIS quantities.
+#[derive(Clone, Copy, Debug)]
+struct Subpath {
+    /// Throughput from the subpath's origin (on a light subpath flux-like: emitted radiance over the densities).
+    beta: Rgb,
+    /// The MIS quantities.
+    mis: MisState,
 }
 
 /// Traces one light subpath: stores its vertices (when connecting or merging) and connects each to the camera
 /// (when connecting, or light tracing).
-fn light_subpath(
-    prep: &Prepared,
-    it: &Iteration,
-    s: &mut Sampler,
-    vertices: &mut Vec<LightVertex>,
-    splats: &mut Vec<Splat>,
-    rays: &mut u64,
-) {
-    let Some((mut ray, mut beta, mut state)) = emit(prep, it, s) else { return };
+fn light_subpath(tracer: &mut Tracer, it: &Iteration, vertices: &mut Vec<LightVertex>, splats: &mut Vec<Splat>) {
+    let prep = tracer.prep;
+    let Some((mut ray, mut path)) = emit(tracer, it) else { return };
     let tech = it.techniques;
-    loop {
-        *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+    while let Some(hit) = tracer.intersect(&ray, f32::INFINITY) {
         let wo = -ray.d;
-        state.arrive(hit.t, wo.dot(hit.n).abs());
+        path.mis.arrive(hit.t, wo.dot(hit.n).abs());
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.black_from(wo) {
@@ -307,69 +209,56 @@ fn light_subpath(
         }
         let q = continuation(&bsdf, wo);
         if bsdf.has_non_delta() {
-            let v = LightVertex { p: hit.p, p_error: hit.p_error, bsdf, wo, beta, q, mis: state };
+            let v = LightVertex { p: hit.p, p_error: hit.p_error, bsdf, wo, beta: path.beta, q, mis: path.mis };
             if tech.connect || tech.merge {
                 vertices.push(v);
             }
-            if (tech.connect || tech.light_tracing_only) && state.len < it.max_len {
-                connect_to_camera(prep, it, &hit, &v, s, splats, rays);
+            if (tech.connect || tech.light_tracing_only) && path.mis.len < it.max_len {
+                connect_to_camera(tracer, it, &hit, &v, splats);
             }
         }
-        if state.len + 2 > it.max_len {
+        if path.mis.len + 2 > it.max_len {
             break;
         }
-        let Some(wi) = continue_subpath(it, &bsdf, wo, q, TransportMode::Importance, s, &mut state, &mut beta) else {
+        let Some(wi) = continue_subpath(tracer, it, &bsdf, wo, q, TransportMode::Importance, &mut path) else {
             break;
         };
         ray = hit.spawn_ray(wi);
     }
 }
 
-/// One step of a subpath (SmallVCM's `SampleScattering`): samples the BSDF at a vertex reached from `wo` in
-/// `mode` (light subpaths carry importance, camera subpaths radiance), applies Russian roulette with
-/// continuation probability `q`, and updates the MIS quantities and the throughput (on a light subpath with the
-/// adjoint BSDF's shading-normal factor). The new direction, or `None` when the subpath ends.
-#[allow(clippy::too_many_arguments)]
+/// One step of a subpath (SmallVCM's `SampleScattering`): the surface-bounce step at a vertex reached from
+/// `wo` in `mode` (light subpaths carry importance, camera subpaths radiance; [`Tracer::sample_bsdf`]), Russian
+/// roulette with continuation probability `q`, and the update of the MIS quantities and of the throughput by
+/// `f·|wi·ns| / (pdf·q)` (on a light subpath with the adjoint BSDF's shading-normal factor,
+/// [`Bsdf::sample_weight`]). The new direction, or `None` when the subpath ends.
 fn continue_subpath(
+    tracer: &mut Tracer,
     it: &Iteration,
     bsdf: &Bsdf,
     wo: Vec3A,
     q: f32,
     mode: TransportMode,
-    s: &mut Sampler,
-    state: &mut MisState,
-    beta: &mut Rgb,
+    path: &mut Subpath,
 ) -> Option<Vec3A> {
-    let (u, u2) = (s.next_f32(), s.next_2d());
-    let bs = bsdf.sample(wo, u, u2, mode)?;
-    if bs.pdf.is_nan() || bs.pdf <= 0.0 || bs.f == Rgb::ZERO || s.next_f32() >= q {
+    let bs = tracer.sample_bsdf(bsdf, wo, mode)?;
+    if tracer.sampler.next_f32() >= q {
         return None;
     }
     let pdf_rev = if bs.delta { bs.pdf } else { bsdf.pdf(bs.wi, wo) };
-    state.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
-    let weight = bs.wi.dot(bsdf.frame.n).abs() / (bs.pdf * q);
-    *beta *= match mode {
-        TransportMode::Importance => bs.f * (weight * bsdf.adjoint_correction(wo, bs.wi)),
-        TransportMode::Radiance => bs.f * weight,
-    };
-    (beta.is_finite() && *beta != Rgb::ZERO).then_some(bs.wi)
+    path.mis.scatter(it, bs.wi.dot(bsdf.ng).abs(), bs.pdf * q, pdf_rev * q, bs.delta);
+    path.beta *= bsdf.sample_weight(wo, &bs, bs.pdf * q, mode);
+    (path.beta.is_finite() && path.beta != Rgb::ZERO).then_some(bs.wi)
 }
 
 /// Light tracing: connects light vertex `v` (at `hit`) to a point on the lens and adds its contribution to the
 /// pixel it lands on (SmallVCM's `ConnectToCamera`; the report's eqs. 46–47). The contribution is
 /// `w · β · f · |cos_x| · W_e / (d² N)`, with `W_e` the camera's importance per pixel
 /// ([`crate::camera::Camera::pixel_direction_pdf`]).
-fn connect_to_camera(
-    prep: &Prepared,
-    it: &Iteration,
-    hit: &Hit,
-    v: &LightVertex,
-    s: &mut Sampler,
-    splats: &mut Vec<Splat>,
-    rays: &mut u64,
-) {
+fn connect_to_camera(tracer: &mut Tracer, it: &Iteration, hit: &Hit, v: &LightVertex, splats: &mut Vec<Splat>) {
+    let prep = tracer.prep;
     let camera = &prep.camera;
-    let lens = camera.lens_point(s.next_2d());
+    let lens = camera.lens_point(tracer.sampler.next_2d());
     let to_lens = lens - v.p;
     let dist2 = to_lens.length_squared();
     if dist2.is_nan() || dist2 <= 0.0 {
@@ -390,7 +279,7 @@ fn connect_to_camera(
     if !c.is_finite() || c == Rgb::ZERO {
         return;
     }
-    *rays += 1;
+    tracer.rays += 1;
     if !unoccluded(prep, hit, w, lens) {
         return;
     }
@@ -422,7 +311,7 @@ pub struct LightSide<'a> {
 }
 
 /// The camera subpath of sample `pass` of pixel `(x, y)`: the radiance it gathers by every technique of `it`
-/// (SmallVCM's camera loop). Non-finite contributions count as zero.
+/// (SmallVCM's camera loop). Non-finite contributions count as zero. Adds the rays it traces to `rays`.
 pub fn camera_subpath(
     prep: &Prepared,
     it: &Iteration,
@@ -431,7 +320,17 @@ pub fn camera_subpath(
     pass: u32,
     rays: &mut u64,
 ) -> Rgb {
-    let (mut ray, mut s) = camera_sample(prep, prep.settings.seed, x, y, pass);
+    let (ray, s) = camera_sample(prep, prep.settings.seed, x, y, pass);
+    let mut tracer = Tracer::new(prep, s);
+    let l = camera_walk(&mut tracer, it, light, ray, (y * prep.camera.width + x) as usize);
+    *rays += tracer.rays;
+    l
+}
+
+/// [`camera_subpath`] from its camera ray `ray`, in pixel `index` (`y·width + x`, the index of the light subpath
+/// it connects to).
+fn camera_walk(tracer: &mut Tracer, it: &Iteration, light: &LightSide, mut ray: Ray, index: usize) -> Rgb {
+    let prep = tracer.prep;
     let camera = &prep.camera;
     let tech = it.techniques;
     let cos_camera = ray.d.dot(camera.forward());
@@ -439,20 +338,17 @@ pub fn camera_subpath(
         return Rgb::ZERO;
     }
     let camera_pdf_w = camera.pixel_direction_pdf(cos_camera);
-    let mut state = MisState::from_camera(it, camera_pdf_w);
-    let mut beta = Rgb::ONE;
+    let mut path = Subpath { beta: Rgb::ONE, mis: MisState::from_camera(it, camera_pdf_w) };
     let mut l = Rgb::ZERO;
-    let own_path = light.paths.of((y * camera.width + x) as usize);
-    loop {
-        *rays += 1;
-        let Some(hit) = prep.geometry.intersect(&ray, f32::INFINITY) else { break };
+    let own_path = light.paths.of(index);
+    while let Some(hit) = tracer.intersect(&ray, f32::INFINITY) {
         let wo = -ray.d;
-        state.arrive(hit.t, wo.dot(hit.n).abs());
+        path.mis.arrive(hit.t, wo.dot(hit.n).abs());
         if hit.light != NONE {
-            let le = emission(prep, it, &hit, wo, &state);
-            l += finite_or_zero(beta * le);
+            let le = emission(prep, it, &hit, wo, &path.mis);
+            l += finite_or_zero(path.beta * le);
         }
-        if tech.light_tracing_only || state.len >= it.max_len {
+        if tech.light_tracing_only || path.mis.len >= it.max_len {
             break;
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
@@ -461,23 +357,22 @@ pub fn camera_subpath(
             break;
         }
         let q = continuation(&bsdf, wo);
-        let vertex = CameraVertex { hit: &hit, bsdf: &bsdf, wo, q, mis: state };
+        let vertex = CameraVertex { hit: &hit, bsdf: &bsdf, wo, q, mis: path.mis };
         if bsdf.has_non_delta() {
             if tech.connect {
-                l += finite_or_zero(beta * direct_light(prep, it, &vertex, &mut s, rays));
+                l += finite_or_zero(path.beta * direct_light(tracer, it, &vertex));
                 for v in own_path {
-                    if v.mis.len + 1 + state.len > it.max_len {
+                    if v.mis.len + 1 + path.mis.len > it.max_len {
                         break;
                     }
-                    l += finite_or_zero(beta * connect(prep, it, &vertex, v, rays));
+                    l += finite_or_zero(path.beta * connect(tracer, it, &vertex, v));
                 }
             }
             if let (true, Some(tree)) = (tech.merge, light.tree) {
-                l += finite_or_zero(beta * merge(it, &vertex, &light.paths.vertices, tree));
+                l += finite_or_zero(path.beta * merge(it, &vertex, &light.paths.vertices, tree));
             }
         }
-        let Some(wi) = continue_subpath(it, &bsdf, wo, q, TransportMode::Radiance, &mut s, &mut state, &mut beta)
-        else {
+        let Some(wi) = continue_subpath(tracer, it, &bsdf, wo, q, TransportMode::Radiance, &mut path) else {
             break;
         };
         ray = hit.spawn_ray(wi);
@@ -512,8 +407,9 @@ fn emission(prep: &Prepared, it: &Iteration, hit: &Hit, wo: Vec3A, state: &MisSt
 
 /// Next-event estimation at a camera vertex: a light chosen by power, a point on it (SmallVCM's
 /// `DirectIllumination`; eqs. 44–45).
-fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampler, rays: &mut u64) -> Rgb {
-    let (u, u2) = (s.next_f32(), s.next_2d());
+fn direct_light(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex) -> Rgb {
+    let prep = tracer.prep;
+    let (u, u2) = (tracer.sampler.next_f32(), tracer.sampler.next_2d());
     let Some((i, pick)) = prep.lights.choose(u) else { return Rgb::ZERO };
     let Some(light) = prep.lights.lights.get(i) else { return Rgb::ZERO };
     let Some(ls) = light.sample_li(&prep.geometry, c.hit.p, u2) else { return Rgb::ZERO };
@@ -536,7 +432,7 @@ fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampl
     let emission_ratio = emission_pdf_w * ls.wi.dot(c.bsdf.ng).abs() / (direct_pdf_w * cos_light);
     let weight = weights::direct(it, &c.mis, bsdf_pdf, bsdf_pdf_rev, pick * direct_pdf_w, emission_ratio);
     let contribution = radiance * f * (weight * ls.wi.dot(c.bsdf.frame.n).abs() / (pick * direct_pdf_w));
-    *rays += 1;
+    tracer.rays += 1;
     if !unoccluded(prep, c.hit, ls.wi, ls.p) {
         return Rgb::ZERO;
     }
@@ -544,7 +440,7 @@ fn direct_light(prep: &Prepared, it: &Iteration, c: &CameraVertex, s: &mut Sampl
 }
 
 /// Connects camera vertex `c` to light vertex `v` (SmallVCM's `ConnectVertices`; eqs. 40–41).
-fn connect(prep: &Prepared, it: &Iteration, c: &CameraVertex, v: &LightVertex, rays: &mut u64) -> Rgb {
+fn connect(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex, v: &LightVertex) -> Rgb {
     let d = v.p - c.hit.p;
     let dist2 = d.length_squared();
     if dist2.is_nan() || dist2 <= 0.0 {
@@ -570,9 +466,9 @@ fn connect(prep: &Prepared, it: &Iteration, c: &CameraVertex, v: &LightVertex, r
     if contribution == Rgb::ZERO || !contribution.is_finite() {
         return Rgb::ZERO;
     }
-    *rays += 1;
+    tracer.rays += 1;
     let target = offset_ray_origin_by_error(v.p, v.p_error, v.bsdf.ng, -w);
-    if !unoccluded(prep, c.hit, w, target) {
+    if !unoccluded(tracer.prep, c.hit, w, target) {
         return Rgb::ZERO;
     }
     contribution
@@ -626,80 +522,6 @@ fn merge_in(
         sum += f * v.beta * (weight * it.kernel.weight(d2 * inv_r2));
     }
     sum * it.vm_normalization
-}
-
-/// The MIS weight of each technique, from the quantities of the subpaths it joins and the densities at the
-/// join (every density in solid angle includes Russian roulette's `q` at its vertex; area densities are the
-/// solid-angle ones times `|cos| / d²` at the vertex they land on). The weights of all the techniques that can
-/// make one path sum to 1 (a test checks it on stored paths).
-pub mod weights {
-    use super::{Iteration, MisState, mis};
-
-    /// A camera subpath that found an area light (eqs. 42–43): `direct_pdf_a` is the area density with which
-    /// next-event estimation would pick the point, `emission_pdf_w` the density of emitting towards the
-    /// subpath (light choice included in both). 1 when the camera sees the light directly.
-    pub fn emission(camera: &MisState, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
-        if camera.len == 1 {
-            return 1.0;
-        }
-        1.0 / (1.0 + mis(direct_pdf_a) * camera.d_vcm + mis(emission_pdf_w) * camera.d_vc)
-    }
-
-    /// Next-event estimation at a camera vertex (eqs. 44–45): `bsdf_pdf` is the density of the BSDF sampling
-    /// the light direction (0 for a delta light), `bsdf_pdf_rev` of the reverse direction, `light_pdf_w` the
-    /// solid-angle density of the light sample (light choice included), and `emission_ratio` the emission
-    /// density of the opposite direction over the light sample's, as area densities at the two ends
-    /// (`emission_pdf_w · |cos_vertex| / (direct_pdf_w · |cos_light|)`; the light choice cancels).
-    pub fn direct(
-        it: &Iteration,
-        camera: &MisState,
-        bsdf_pdf: f32,
-        bsdf_pdf_rev: f32,
-        light_pdf_w: f32,
-        emission_ratio: f32,
-    ) -> f32 {
-        let w_light = mis(bsdf_pdf / light_pdf_w);
-        let w_camera = mis(emission_ratio) * (it.vm_weight + camera.d_vcm + camera.d_vc * mis(bsdf_pdf_rev));
-        1.0 / (w_light + 1.0 + w_camera)
-    }
-
-    /// A connection between a camera vertex and a light vertex (eqs. 40–41): `camera_pdf_a` is the camera
-    /// vertex's BSDF sampling the light vertex (area density there), `light_pdf_a` the reverse, and each
-    /// `*_pdf_rev` the vertex's BSDF sampling its own predecessor from the connecting direction.
-    pub fn connect(
-        it: &Iteration,
-        camera: &MisState,
-        light: &MisState,
-        camera_pdf_a: f32,
-        camera_pdf_rev: f32,
-        light_pdf_a: f32,
-        light_pdf_rev: f32,
-    ) -> f32 {
-        let w_light = mis(camera_pdf_a) * (it.vm_weight + light.d_vcm + light.d_vc * mis(light_pdf_rev));
-        let w_camera = mis(light_pdf_a) * (it.vm_weight + camera.d_vcm + camera.d_vc * mis(camera_pdf_rev));
-        1.0 / (w_light + 1.0 + w_camera)
-    }
-
-    /// A light vertex connected to the camera (eqs. 46–47): `camera_pdf_a` is the camera's density of the
-    /// vertex (area density), `light_pdf_rev` the vertex's BSDF sampling its predecessor from the camera's
-    /// direction. Light tracing alone (no other technique) weighs 1.
-    pub fn light_trace(it: &Iteration, light: &MisState, camera_pdf_a: f32, light_pdf_rev: f32) -> f32 {
-        if it.techniques.light_tracing_only {
-            return 1.0;
-        }
-        let w_light =
-            mis(camera_pdf_a / it.light_paths) * (it.vm_weight + light.d_vcm + light.d_vc * mis(light_pdf_rev));
-        1.0 / (1.0 + w_light)
-    }
-
-    /// A merge of a camera vertex with a light vertex (eqs. 38–39): `camera_pdf` is the camera vertex's BSDF
-    /// sampling the light vertex's incoming direction (with the camera vertex's roulette), `camera_pdf_rev` the
-    /// reverse (with the light vertex's roulette: it stands for the light subpath continuing).
-    pub fn merge(it: &Iteration, camera: &MisState, light: &MisState, camera_pdf: f32, camera_pdf_rev: f32) -> f32 {
-        let w_light = light.d_vcm * it.vc_weight + light.d_vm * mis(camera_pdf);
-        let w_camera = camera.d_vcm * it.vc_weight + camera.d_vm * mis(camera_pdf_rev);
-        1.0 / (w_light + 1.0 + w_camera)
-    }
 }
 
 /// Renders vcm's (or bdpt's, or lt's) iterations `passes` over rows `rows`: each pixel channel's sum over those
