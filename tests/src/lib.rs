@@ -1,8 +1,8 @@
 //! Helpers shared by photon's end-to-end tests, which run the binaries as a user runs them.
 //!
-//! `photon-coordinator` and `photon-worker` are other packages' binaries, so Cargo does not build them for these
-//! tests and `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build -p photon-coordinator -p
-//! photon-worker --features photon-worker/fault-injection` once per test process
+//! `photon-coordinator`, `photon-worker` and `photon-sweep` are other packages' binaries, so Cargo does not build
+//! them for these tests and `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build -p photon-coordinator
+//! -p photon-worker -p photon-sweep --features photon-worker/fault-injection` once per test process
 //! (a no-op when the binary is fresh; it builds it when missing or stale) in the profile and target folder of the
 //! running test executable, then returns `<target>/<profile>/photon-coordinator`, found from
 //! `std::env::current_exe()` (`<target>/<profile>/deps/<test>-…`). The worker gets the feature `fault-injection`
@@ -36,7 +36,7 @@ pub fn coordinator() -> &'static Path {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
         let mut build = Command::new(cargo);
-        build.args(["build", "--quiet", "-p", "photon-coordinator", "-p", "photon-worker"]);
+        build.args(["build", "--quiet", "-p", "photon-coordinator", "-p", "photon-worker", "-p", "photon-sweep"]);
         // The tests' fault flags (photon-worker's hidden --test-…), with the feature set of this package's
         // dev-dependency on the worker: a different set would build photon-worker a second time.
         build.args(["--features", "photon-worker/fault-injection", "--manifest-path"]);
@@ -80,6 +80,11 @@ pub fn scenes_dir() -> PathBuf {
 /// The worker binary, built with the coordinator.
 pub fn worker() -> PathBuf {
     coordinator().with_file_name(format!("photon-worker{}", std::env::consts::EXE_SUFFIX))
+}
+
+/// The sweep's binary (`photon-sweep`, in `tools/sweep/`), built with the coordinator.
+pub fn sweep() -> PathBuf {
+    coordinator().with_file_name(format!("photon-sweep{}", std::env::consts::EXE_SUFFIX))
 }
 
 /// A `photon-worker` process on a free loopback port, killed (SIGKILL) when dropped.
