@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Structure measures of the workspace's crates (core, coordinator, worker, proto).
+"""Structure measures of the workspace's crates (core, coordinator, worker, proto, tools/sweep).
 
 Run it from the repository root, with nothing to install (Python 3.8 or later):
 
@@ -31,7 +31,7 @@ import re
 import sys
 from collections import defaultdict
 
-CRATES = ("core", "coordinator", "worker", "proto")
+CRATES = ("core", "coordinator", "worker", "proto", "tools/sweep")
 METHOD_FILE = os.path.join("core", "src", "method.rs")
 SKIPPED_DIRS = ("tests", "benches", "examples")
 

@@ -19,8 +19,10 @@
 //! - [`out`]: what the user reads: warnings during the render, the worker table and the summary line
 //!   ([`out::report`]), and a web page of the render while it runs ([`out::live`]).
 //!
-//! Two tools stand apart: [`sweep`] charts error against time, and [`model`] is a discrete-event model of a
-//! lab farm that drives the real scheduler with a simulated clock and network.
+//! Beside them: [`measure`] chooses a reference's method and times a render on the workers (for `reference`, and
+//! for the sweep of error against time, a tool of its own in `tools/sweep/`, `photon-sweep`, so that its charts
+//! and fonts are not part of the renderer's build); [`model`] is a discrete-event model of a lab farm that drives
+//! the real scheduler with a simulated clock and network.
 //!
 //! The user's manual is the repository's `README.md`; `docs/ARCHITECTURE.md` the design, `docs/RESULTS.md` the
 //! measurements.
@@ -59,6 +61,6 @@ pub mod cli;
 pub mod farm;
 pub mod fleet;
 pub mod job;
+pub mod measure;
 pub mod model;
 pub mod out;
-pub mod sweep;

@@ -5,13 +5,7 @@ use clap::Parser;
 use photon_coordinator::cli::{Cli, commands};
 
 fn main() {
-    tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env()
-                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
-        )
-        .with_writer(std::io::stderr)
-        .init();
+    commands::init_logging();
     // `photon-coordinator … | head` closes the pipe early: end quietly, as a SIGPIPE would, not with a panic.
     let default_hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {

@@ -164,110 +164,136 @@ struct Sim<'a> {
     downlink_free: f64,
     queue_empty_at: Option<f64>,
     failures: u32,
+    /// When the last live worker became ready.
+    last_ready: f64,
+    /// When the last accepted result arrived.
+    end: f64,
 }
 
 /// Runs `job` on `workers` over `net` with `policy`; returns where the time went.
 pub fn simulate(job: &SimJob, workers: &[SimWorker], net: &Network, policy: Policy) -> SimReport {
-    let mut sim = Sim {
-        job,
-        workers,
-        net,
-        sched: Scheduler::with_policy(job.units, job.units_per_strip, policy),
-        machines: vec![Machine::default(); workers.len()],
-        events: BinaryHeap::new(),
-        seq: 0,
-        downlink_free: job.prepare_s,
-        queue_empty_at: None,
-        failures: 0,
-    };
-    // Uploads one after another on the coordinator's link, or passed on in rounds.
-    let upload = job.blob_bytes / net.coordinator_bps.min(net.worker_bps);
-    for (i, w) in workers.iter().enumerate() {
-        let transfers = if job.relay { f64::from((i + 1).ilog2() + 1) } else { (i + 1) as f64 };
-        let held = job.prepare_s + transfers * upload;
-        sim.push(held + net.rtt_s + job.load_core_s / sim.speed(i), Kind::Ready(i));
-        if let Some(t) = w.dies_at {
-            sim.push(t, Kind::Dies(i));
-        }
-    }
-    let mut last_ready = job.prepare_s;
-    let mut end = job.prepare_s;
-    while let Some(Event { t, kind, .. }) = sim.events.pop() {
-        if sim.sched.is_done() {
-            break;
-        }
-        match kind {
-            Kind::Ready(i) if !sim.machines[i].dead => {
-                sim.sched.add_worker(WorkerId(i as u32), workers[i].cores);
-                sim.machines[i].ready = true;
-                last_ready = last_ready.max(t);
-            }
-            Kind::Ready(_) => {}
-            Kind::Computed { worker, generation } => sim.computed(worker, generation, t),
-            Kind::Arrived { worker, strip, attempt } => {
-                if let Completion::Accepted { cancel } =
-                    sim.sched.complete(WorkerId(worker as u32), strip, attempt, at(t))
-                {
-                    end = t;
-                    for (w, s) in cancel {
-                        sim.withdraw(w.0 as usize, s, t);
-                    }
-                }
-            }
-            Kind::Dies(i) => {
-                let m = &mut sim.machines[i];
-                m.dead = true;
-                m.generation += 1;
-                sim.push(t + net.detect_s, Kind::Noticed(i));
-            }
-            Kind::Noticed(i) => {
-                let lost = sim.sched.worker_lost(WorkerId(i as u32), at(t));
-                sim.failures += lost.len() as u32;
-            }
-            Kind::Tick => {}
-        }
-        for (w, s) in sim.sched.expired(at(t)) {
-            sim.withdraw(w.0 as usize, s, t);
-            let deadline = sim.sched.deadline(w, s).unwrap_or_default();
-            sim.sched.failed(w, s, StripFailure::timed_out(at(t), deadline), at(t));
-            sim.failures += 1;
-        }
-        sim.fill(t);
-        if let Some(d) = sim.sched.next_deadline() {
-            let d = d.as_secs_f64();
-            if d > t && sim.events.peek().is_none_or(|e| e.t > d) {
-                sim.push(d + 1e-6, Kind::Tick);
-            }
-        }
-        if sim.sched.all_workers_gone() && sim.machines.iter().all(|m| m.ready || m.dead) {
-            break;
-        }
-    }
-    let speed: f64 = (0..workers.len()).map(|i| sim.speed(i)).sum();
-    let ideal_s = f64::from(job.units) * job.core_s_per_unit / speed.max(f64::MIN_POSITIVE);
-    let speculative = sim.sched.workers().map(|(_, s)| s.speculative).sum();
-    let complete = sim.sched.is_done();
-    let strips =
-        (0..workers.len()).map(|i| sim.sched.worker_stats(WorkerId(i as u32)).map_or(0, |s| s.strips)).collect();
-    SimReport {
-        makespan_s: end,
-        ideal_s,
-        efficiency: if complete { ideal_s / end } else { 0.0 },
-        prepare_s: job.prepare_s,
-        ship_s: last_ready - job.prepare_s,
-        tail_s: sim.queue_empty_at.map_or(0.0, |q| (end - q).max(0.0)),
-        speculative,
-        failures: sim.failures,
-        complete,
-        strips,
-    }
+    let mut sim = Sim::new(job, workers, net, policy);
+    sim.run();
+    sim.report()
 }
 
 fn at(t: f64) -> Duration {
     Duration::from_secs_f64(t.max(0.0))
 }
 
-impl Sim<'_> {
+impl<'a> Sim<'a> {
+    /// The farm before the start: every worker's readiness (after its upload and decode) and death scheduled.
+    fn new(job: &'a SimJob, workers: &'a [SimWorker], net: &'a Network, policy: Policy) -> Self {
+        let mut sim = Sim {
+            job,
+            workers,
+            net,
+            sched: Scheduler::with_policy(job.units, job.units_per_strip, policy),
+            machines: vec![Machine::default(); workers.len()],
+            events: BinaryHeap::new(),
+            seq: 0,
+            downlink_free: job.prepare_s,
+            queue_empty_at: None,
+            failures: 0,
+            last_ready: job.prepare_s,
+            end: job.prepare_s,
+        };
+        // Uploads one after another on the coordinator's link, or passed on in rounds.
+        let upload = job.blob_bytes / net.coordinator_bps.min(net.worker_bps);
+        for (i, w) in workers.iter().enumerate() {
+            let transfers = if job.relay { f64::from((i + 1).ilog2() + 1) } else { (i + 1) as f64 };
+            let held = job.prepare_s + transfers * upload;
+            sim.push(held + net.rtt_s + job.load_core_s / sim.speed(i), Kind::Ready(i));
+            if let Some(t) = w.dies_at {
+                sim.push(t, Kind::Dies(i));
+            }
+        }
+        sim
+    }
+
+    /// Takes events in time order until every strip is done, or no worker is left.
+    fn run(&mut self) {
+        while let Some(Event { t, kind, .. }) = self.events.pop() {
+            if self.sched.is_done() {
+                break;
+            }
+            self.handle(kind, t);
+            for (w, s) in self.sched.expired(at(t)) {
+                self.withdraw(w.0 as usize, s, t);
+                let deadline = self.sched.deadline(w, s).unwrap_or_default();
+                self.sched.failed(w, s, StripFailure::timed_out(at(t), deadline), at(t));
+                self.failures += 1;
+            }
+            self.fill(t);
+            if let Some(d) = self.sched.next_deadline() {
+                let d = d.as_secs_f64();
+                if d > t && self.events.peek().is_none_or(|e| e.t > d) {
+                    self.push(d + 1e-6, Kind::Tick);
+                }
+            }
+            if self.sched.all_workers_gone() && self.machines.iter().all(|m| m.ready || m.dead) {
+                break;
+            }
+        }
+    }
+
+    /// One event at time `t`.
+    fn handle(&mut self, kind: Kind, t: f64) {
+        match kind {
+            Kind::Ready(i) if !self.machines[i].dead => {
+                self.sched.add_worker(WorkerId(i as u32), self.workers[i].cores);
+                self.machines[i].ready = true;
+                self.last_ready = self.last_ready.max(t);
+            }
+            Kind::Ready(_) => {}
+            Kind::Computed { worker, generation } => self.computed(worker, generation, t),
+            Kind::Arrived { worker, strip, attempt } => {
+                if let Completion::Accepted { cancel } =
+                    self.sched.complete(WorkerId(worker as u32), strip, attempt, at(t))
+                {
+                    self.end = t;
+                    for (w, s) in cancel {
+                        self.withdraw(w.0 as usize, s, t);
+                    }
+                }
+            }
+            Kind::Dies(i) => {
+                let m = &mut self.machines[i];
+                m.dead = true;
+                m.generation += 1;
+                self.push(t + self.net.detect_s, Kind::Noticed(i));
+            }
+            Kind::Noticed(i) => {
+                let lost = self.sched.worker_lost(WorkerId(i as u32), at(t));
+                self.failures += lost.len() as u32;
+            }
+            Kind::Tick => {}
+        }
+    }
+
+    /// Where the time went, once the run is over.
+    fn report(&self) -> SimReport {
+        let (job, workers, end) = (self.job, self.workers, self.end);
+        let speed: f64 = (0..workers.len()).map(|i| self.speed(i)).sum();
+        let ideal_s = f64::from(job.units) * job.core_s_per_unit / speed.max(f64::MIN_POSITIVE);
+        let speculative = self.sched.workers().map(|(_, s)| s.speculative).sum();
+        let complete = self.sched.is_done();
+        let strips =
+            (0..workers.len()).map(|i| self.sched.worker_stats(WorkerId(i as u32)).map_or(0, |s| s.strips)).collect();
+        SimReport {
+            makespan_s: end,
+            ideal_s,
+            efficiency: if complete { ideal_s / end } else { 0.0 },
+            prepare_s: job.prepare_s,
+            ship_s: self.last_ready - job.prepare_s,
+            tail_s: self.queue_empty_at.map_or(0.0, |q| (end - q).max(0.0)),
+            speculative,
+            failures: self.failures,
+            complete,
+            strips,
+        }
+    }
+
     fn push(&mut self, t: f64, kind: Kind) {
         self.seq += 1;
         self.events.push(Event { t, seq: self.seq, kind });

@@ -1,13 +1,21 @@
 //! Helpers shared by photon's end-to-end tests, which run the binaries as a user runs them.
 //!
-//! `photon-coordinator` and `photon-worker` are other packages' binaries, so Cargo does not build them for these
-//! tests and `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build -p photon-coordinator -p
-//! photon-worker --features photon-worker/fault-injection` once per test process
-//! (a no-op when the binary is fresh; it builds it when missing or stale) in the profile and target folder of the
-//! running test executable, then returns `<target>/<profile>/photon-coordinator`, found from
+//! `photon-coordinator`, `photon-worker` and `photon-sweep` are other packages' binaries, so Cargo does not build
+//! them for these tests and `CARGO_BIN_EXE_…` is not set. [`coordinator`] runs `cargo build --workspace --bins
+//! --examples --features photon-worker/fault-injection` once per test process (a no-op when the binaries are
+//! fresh, as they are after `cargo test --workspace`; it builds them when missing or stale) in the profile and
+//! target folder of the running test executable, then returns `<target>/<profile>/photon-coordinator`, found from
 //! `std::env::current_exe()` (`<target>/<profile>/deps/<test>-…`). The worker gets the feature `fault-injection`
-//! for the tests' `--test-…` fault flags, as this package's dev-dependency on it does, so the tests and the
-//! binaries share one build of photon-worker.
+//! for the tests' `--test-…` fault flags, as this package's dev-dependency on it does.
+//!
+//! The build selects what `cargo test --workspace` selects, so that Cargo unifies the same features and the
+//! binaries reuse every library the tests compiled: the whole workspace, with its dev-dependencies (which
+//! `--examples` brings in, building only `coordinator/examples/`, which `cargo test` builds too). A build of the
+//! binaries' packages alone would see other features: criterion, photon-core's dev-dependency, turns on
+//! `either`'s `use_std` and more of `regex-automata`, which rayon and tracing-subscriber share with the binaries,
+//! so the four photon libraries and 17 crates under them (rayon, kiddo, tracing-subscriber, prost, tonic-prost,
+//! …) would be compiled twice. After `cargo test -p photon-tests` alone (no criterion) it is this build that
+//! compiles them a second time.
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
@@ -36,9 +44,9 @@ pub fn coordinator() -> &'static Path {
         let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
         let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join("../Cargo.toml");
         let mut build = Command::new(cargo);
-        build.args(["build", "--quiet", "-p", "photon-coordinator", "-p", "photon-worker"]);
-        // The tests' fault flags (photon-worker's hidden --test-…), with the feature set of this package's
-        // dev-dependency on the worker: a different set would build photon-worker a second time.
+        // The selection of `cargo test --workspace`, dev-dependencies included (module documentation), with the
+        // tests' fault flags (photon-worker's hidden --test-…).
+        build.args(["build", "--quiet", "--workspace", "--bins", "--examples"]);
         build.args(["--features", "photon-worker/fault-injection", "--manifest-path"]);
         build.arg(&manifest);
         build.arg("--target-dir").arg(target_dir);
@@ -57,7 +65,7 @@ pub fn coordinator() -> &'static Path {
             }
         }
         let status = build.status().unwrap_or_else(|e| panic!("cannot run cargo: {e}"));
-        assert!(status.success(), "`cargo build -p photon-coordinator -p photon-worker` failed: {status}");
+        assert!(status.success(), "`cargo build --workspace --bins --examples` failed: {status}");
         let bin = profile_dir.join(format!("photon-coordinator{}", std::env::consts::EXE_SUFFIX));
         assert!(bin.is_file(), "{} missing after the build", bin.display());
         bin
@@ -80,6 +88,11 @@ pub fn scenes_dir() -> PathBuf {
 /// The worker binary, built with the coordinator.
 pub fn worker() -> PathBuf {
     coordinator().with_file_name(format!("photon-worker{}", std::env::consts::EXE_SUFFIX))
+}
+
+/// The sweep's binary (`photon-sweep`, in `tools/sweep/`), built with the coordinator.
+pub fn sweep() -> PathBuf {
+    coordinator().with_file_name(format!("photon-sweep{}", std::env::consts::EXE_SUFFIX))
 }
 
 /// A `photon-worker` process on a free loopback port, killed (SIGKILL) when dropped.

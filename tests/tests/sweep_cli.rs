@@ -1,17 +1,18 @@
-//! `photon-coordinator reference` and `sweep` end to end on a 12×12 Cornell box: the reference is a path-traced
-//! EXR; the sweep, on two loopback worker processes, writes one CSV row per method and budget with finite
+//! `photon-coordinator reference` and `photon-sweep` end to end on a 12×12 Cornell box: the reference is a
+//! path-traced EXR; the sweep, on two loopback worker processes, writes one CSV row per method and budget with finite
 //! values, each method's error falls at every step of a 4× budget, both charts are written, and report.html
 //! shows the summaries as tables and the reference and each method's image over its error map, PNGs of the
 //! sweep's size.
 #![allow(clippy::unwrap_used)]
 
 use photon_core::image_io::Image;
-use photon_tests::{coordinator, scenes_dir, temp_dir};
+use photon_tests::{coordinator, scenes_dir, sweep, temp_dir};
 use std::path::Path;
 use std::process::{Command, Output};
 
-fn run(dir: &Path, args: &[&str]) -> Output {
-    let out = Command::new(coordinator()).current_dir(dir).args(args).output().unwrap();
+/// Runs `bin` (the coordinator or the sweep) in `dir`; panics, with its output, unless it succeeds.
+fn run(bin: &Path, dir: &Path, args: &[&str]) -> Output {
+    let out = Command::new(bin).current_dir(dir).args(args).output().unwrap();
     assert!(
         out.status.success(),
         "{args:?} failed\nstdout: {}\nstderr: {}",
@@ -36,15 +37,15 @@ fn reference_then_sweep_writes_a_falling_csv_and_charts() {
         "materials.mirror={type=\"lambert\",albedo=0.5}",
     ];
     let reference = ["reference", scene, "-o", "ref.exr", "--spp", "512", "--size", "12x12"];
-    let out = run(&dir, &[&reference[..], &diffuse[..]].concat());
+    let out = run(coordinator(), &dir, &[&reference[..], &diffuse[..]].concat());
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("reference method: path"), "{stdout}");
     assert!(dir.join("ref.exr").is_file());
 
     // Fewer photons per progressive pass keep the test short; the budget still grows the passes.
-    let args = ["sweep", scene, "--reference", "ref.exr", "--methods", "path,progressive", "--budget", "1,4,16"];
+    let args = [scene, "--reference", "ref.exr", "--methods", "path,progressive", "--budget", "1,4,16"];
     let more = ["--size", "12x12", "--out", "out", "--set", "render.photons.pass_photons=20000", "--local", "2"];
-    let out = run(&dir, &[&args[..], &more[..], &diffuse[..]].concat());
+    let out = run(&sweep(), &dir, &[&args[..], &more[..], &diffuse[..]].concat());
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("equal time") && stdout.contains("equal error"), "{stdout}");
     assert!(stdout.contains("on local-0, local-1"), "the sweep should render on the two local workers: {stdout}");
@@ -107,10 +108,10 @@ fn reference_must_be_exr_and_sweep_size_must_match() {
     assert_eq!(out.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&out.stderr).contains(".exr"));
 
-    run(&dir, &["reference", scene, "-o", "ref.exr", "--spp", "4", "--size", "8x8"]);
-    let out = Command::new(coordinator())
+    run(coordinator(), &dir, &["reference", scene, "-o", "ref.exr", "--spp", "4", "--size", "8x8"]);
+    let out = Command::new(sweep())
         .current_dir(&dir)
-        .args(["sweep", scene, "--reference", "ref.exr", "--methods", "path", "--budget", "1", "--size", "9x9"])
+        .args([scene, "--reference", "ref.exr", "--methods", "path", "--budget", "1", "--size", "9x9"])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));

@@ -1,17 +1,17 @@
-//! The commands of the command line: `render`, `compare`, `reference` and `sweep`, each from its parsed
+//! The commands of the command line: `render`, `compare` and `reference`, each from its parsed
 //! arguments ([`crate::cli`]) to its output files and the lines it prints.
 
 use crate::cli::overrides::{self, Setting};
-use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved, SweepArgs};
+use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved};
 use crate::farm::{self, FarmError};
 use crate::fleet::interrupt::Interrupts;
 use crate::fleet::{self, session::Greeting};
 use crate::job::delivery::{self, MapDelivery};
 use crate::job::prepared_cache::PreparedCache;
 use crate::job::{Partial, partial_path, prepare_job};
+use crate::measure;
 use crate::out::live::{self, Board, LiveServer};
-use crate::out::report::{Summary, print_workers};
-use crate::sweep::{self, sig};
+use crate::out::report::{Summary, print_workers, sig};
 use anyhow::{Context, Result, bail};
 use photon_core::image_io::{Format, Image};
 use photon_core::method::Method;
@@ -28,12 +28,23 @@ pub fn run(cli: Cli) -> Result<()> {
         Command::Render(args) => render(args),
         Command::Compare(args) => compare(args),
         Command::Reference(args) => reference(args),
-        Command::Sweep(args) => sweep(args),
     }
 }
 
+/// Logs to standard error, at `warn` unless `RUST_LOG` says otherwise: the log of `photon-coordinator` and of
+/// the tools built on this library (`photon-sweep`).
+pub fn init_logging() {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env()
+                .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn")),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+}
+
 /// The async runtime of the farm: two threads are plenty for the network; rendering runs on rayon.
-fn runtime() -> Result<tokio::runtime::Runtime> {
+pub fn runtime() -> Result<tokio::runtime::Runtime> {
     tokio::runtime::Builder::new_multi_thread()
         .worker_threads(2)
         .enable_all()
@@ -377,7 +388,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         eprintln!("warning: the reference seed equals the scene's render.seed: its noise will correlate with renders");
     }
     // Decide on the scene as it stands (lights and materials do not depend on the method).
-    let choice = sweep::choose_reference(&Prepared::new(&scene, &args.scene)?);
+    let choice = measure::choose_reference(&Prepared::new(&scene, &args.scene)?);
     let budget = if choice.integrator.renders_passes() { Setting::Passes(args.passes) } else { Setting::Spp(args.spp) };
     let settings = [size.as_slice(), &[Setting::Integrator(choice.integrator), Setting::Seed(args.seed), budget]];
     let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
@@ -391,7 +402,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     let t = runtime()?.block_on(async {
         let fleet = fleet::Fleet::start(&spec).await?;
         let options = farm::Options { token, tls_ca, ..farm::Options::default() };
-        let t = sweep::render_timed(&scene, &args.scene, &fleet.addrs, options).await;
+        let t = measure::render_timed(&scene, &args.scene, &fleet.addrs, options).await;
         fleet.stop().await;
         t
     })?;
@@ -406,124 +417,6 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         t.prepare_s
     );
     Ok(())
-}
-
-fn sweep(args: SweepArgs) -> Result<()> {
-    if args.methods.is_empty() || args.budget.is_empty() {
-        bail!("--methods and --budget need at least one value each");
-    }
-    if args.budget.contains(&0) {
-        bail!("budget multipliers must be at least 1");
-    }
-    let reference = Image::read(&args.reference).with_context(|| format!("reading {}", args.reference.display()))?;
-    let (width, height) = args.size.unwrap_or((reference.width, reference.height));
-    if (width, height) != (reference.width, reference.height) {
-        bail!(
-            "--size {width}x{height} differs from the reference {} ({}x{})",
-            args.reference.display(),
-            reference.width,
-            reference.height
-        );
-    }
-    std::fs::create_dir_all(&args.out).with_context(|| format!("creating {}", args.out.display()))?;
-    let base = overrides::pairs(&args.set, &[Setting::Size(width, height)]);
-    // Load once before starting workers, so that a broken scene fails at once.
-    let exposure = Scene::load_with(&args.scene, &base)?.render.exposure;
-    reference.write(&args.out.join(sweep::REFERENCE_PNG), exposure)?;
-    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
-    let rows = runtime()?.block_on(async {
-        // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
-        let fleet = fleet::Fleet::start(&spec).await?;
-        let names: Vec<&str> = fleet.addrs.iter().map(|a| a.name.as_str()).collect();
-        println!(
-            "sweep of {} at {width}x{height} against {}: on {} ({} threads here)",
-            args.scene.display(),
-            args.reference.display(),
-            names.join(", "),
-            rayon::current_num_threads()
-        );
-        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
-        let rows = sweep_rows(&args, &base, &reference, &fleet.addrs, options).await;
-        fleet.stop().await;
-        rows
-    })?;
-    let csv_path = args.out.join("sweep.csv");
-    std::fs::write(&csv_path, sweep::csv(&rows)).with_context(|| format!("writing {}", csv_path.display()))?;
-    let curves = sweep::curves(&rows);
-    let name = args.scene.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
-    let title = format!("{name} {width}x{height}: relative MSE against wall time");
-    let (svg, png) = (args.out.join("sweep.svg"), args.out.join("sweep.png"));
-    sweep::draw_charts(&curves, &title, &svg, &png)?;
-    println!();
-    for (heading, table) in sweep::summaries(&curves) {
-        println!("{heading}:\n{}", table.markdown());
-    }
-    let report = sweep::Report {
-        scene: &args.scene,
-        reference: &args.reference,
-        size: (width, height),
-        threads: rayon::current_num_threads(),
-        set: &args.set,
-        rows: &rows,
-    };
-    let html = args.out.join(sweep::REPORT_HTML);
-    std::fs::write(&html, report.html()).with_context(|| format!("writing {}", html.display()))?;
-    println!(
-        "wrote {}, {} and {}, and each method's image at its largest budget",
-        csv_path.display(),
-        svg.display(),
-        png.display()
-    );
-    println!("report: {}", html.display());
-    Ok(())
-}
-
-/// Renders every (method, budget) of a sweep on the workers at `addrs` and measures it; writes each method's
-/// image at the largest budget and its error map into the sweep's folder ([`sweep::write_images`]).
-async fn sweep_rows(
-    args: &SweepArgs,
-    base: &[String],
-    reference: &Image,
-    addrs: &[crate::fleet::session::WorkerAddr],
-    options: farm::Options,
-) -> Result<Vec<sweep::Row>> {
-    let mut rows = Vec::new();
-    let largest = args.budget.iter().copied().max().unwrap_or_default();
-    for &method in &args.methods {
-        for &b in &args.budget {
-            let (settings, setting) = sweep::budget(method, b)?;
-            let scene = Scene::load_with(&args.scene, &overrides::pairs(base, &settings))?;
-            let t = sweep::render_timed(&scene, &args.scene, addrs, options.clone())
-                .await
-                .with_context(|| format!("rendering {method} at budget {b}"))?;
-            let m = metrics::compare(&t.image, reference, None)
-                .with_context(|| format!("measuring {method} at budget {b} against {}", args.reference.display()))?;
-            if b == largest {
-                sweep::write_images(&args.out, method, &t.image, reference, scene.render.exposure)?;
-            }
-            let row = sweep::Row {
-                method,
-                budget: b,
-                setting,
-                seconds: t.prepare_s + t.render_s,
-                rmse: m.rmse,
-                rel_mse: m.rel_mse,
-                estimated_rel_mse: t.estimated_rel_mse,
-            };
-            println!(
-                "  {:<13} b={:<4} {:<16} {:>8.3} s  rmse {:<10} relMSE {}{}",
-                method.name(),
-                b,
-                format!("{}={}", row.setting.parameter, row.setting.value),
-                row.seconds,
-                sig(row.rmse),
-                sig(row.rel_mse),
-                row.estimated_rel_mse.map(|e| format!(" (estimated {})", sig(e))).unwrap_or_default()
-            );
-            rows.push(row);
-        }
-    }
-    Ok(rows)
 }
 
 /// The readable block of `compare`: one metric a line, labels in a column.
@@ -557,9 +450,6 @@ mod tests {
     #[test]
     fn the_methods_in_passes_parse_and_bound_their_passes() {
         use clap::Parser as _;
-        let sweep = ["photon-coordinator", "sweep", "s.toml", "--reference", "r.exr", "--methods", "vcm,bdpt,lt"];
-        let Command::Sweep(args) = Cli::try_parse_from(sweep).unwrap().command else { unreachable!("a sweep") };
-        assert_eq!(args.methods, [Method::Vcm, Method::Bdpt, Method::Lt]);
         let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nwidth = 8\nheight = 8\n";
         let methods = [("progressive", true), ("vcm", true), ("bdpt", false), ("lt", false), ("path", false)];
         for (method, biased) in methods {

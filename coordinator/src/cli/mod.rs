@@ -31,11 +31,6 @@ pub(crate) enum Command {
     /// Render a reference EXR: the path tracer at many samples, or progressive photon mapping at many passes
     /// when the scene has point-light caustics. Renders on workers like `render` (in-process by default).
     Reference(ReferenceArgs),
-    /// Render with several methods at growing budgets, measure each image against a reference, and write
-    /// sweep.csv, sweep.svg and sweep.png with equal-time and equal-error tables, each method's image at its
-    /// largest budget with its error map, and report.html showing them all. Renders run one after another on
-    /// workers like `render` (in-process by default; `--workers`, `--hosts` or `--local` for others).
-    Sweep(SweepArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -148,7 +143,7 @@ impl RenderArgs {
 
 /// Where to render: with none of `--hosts`, `--workers` or `--local`, on a worker inside this process.
 #[derive(clap::Args, Debug, Clone)]
-pub(crate) struct FarmArgs {
+pub struct FarmArgs {
     /// Render on the workers of a host list (TOML: `[[worker]]` tables with `address` and an optional `name`).
     #[arg(long, value_name = "FILE", conflicts_with_all = ["workers", "local"])]
     pub(crate) hosts: Option<PathBuf>,
@@ -171,16 +166,19 @@ pub(crate) struct FarmArgs {
 }
 
 /// What the farm flags resolve to.
-pub(crate) struct Resolved {
-    pub(crate) spec: fleet::FleetSpec,
-    pub(crate) token: Option<String>,
-    pub(crate) tls_ca: Option<Vec<u8>>,
+pub struct Resolved {
+    /// Where the workers are.
+    pub spec: fleet::FleetSpec,
+    /// The token to send them, if any.
+    pub token: Option<String>,
+    /// The PEM certificate authority to trust when speaking TLS to them.
+    pub tls_ca: Option<Vec<u8>>,
 }
 
 impl FarmArgs {
     /// Checks the flags, sizes the thread pool and says which workers to use, which token to send and which
     /// authority to trust.
-    pub(crate) fn resolve(&self) -> Result<Resolved> {
+    pub fn resolve(&self) -> Result<Resolved> {
         if let Some(t) = self.threads {
             if t == 0 {
                 bail!("--threads must be at least 1");
@@ -230,7 +228,7 @@ pub(crate) struct CompareArgs {
 pub(crate) struct ReferenceArgs {
     /// The scene file (TOML).
     pub(crate) scene: PathBuf,
-    /// Output image; must be .exr (linear values, for `compare` and `sweep`).
+    /// Output image; must be .exr (linear values, for `compare` and `photon-sweep`).
     #[arg(short, long)]
     pub(crate) output: PathBuf,
     /// Samples per pixel when the path tracer renders the reference.
@@ -247,36 +245,6 @@ pub(crate) struct ReferenceArgs {
     #[arg(long, default_value_t = 0x5EED)]
     pub(crate) seed: u64,
     /// Override a scene setting, e.g. `--set render.photons.pass_photons=50000`; repeatable.
-    #[arg(long = "set", value_name = "KEY=VALUE")]
-    pub(crate) set: Vec<String>,
-    #[command(flatten)]
-    pub(crate) farm: FarmArgs,
-}
-
-#[derive(clap::Args, Debug)]
-pub(crate) struct SweepArgs {
-    /// The scene file (TOML).
-    pub(crate) scene: PathBuf,
-    /// The reference image (EXR), e.g. from `photon-coordinator reference`.
-    #[arg(long)]
-    pub(crate) reference: PathBuf,
-    /// Methods, comma-separated: `path`, `direct`, `photon-map`, `final-gather`, `progressive`, `vcm`, `bdpt`,
-    /// `lt`.
-    #[arg(long, value_delimiter = ',', default_value = "path,photon-map,final-gather,progressive")]
-    pub(crate) methods: Vec<Method>,
-    /// Budget multipliers b, comma-separated: path/direct render 4·b spp; photon-map traces 25 000·b global
-    /// photons (k fixed, 2 spp); final-gather 25 000·b global and caustic photons (2 spp); progressive, vcm, bdpt
-    /// and lt 4·b passes.
-    #[arg(long, value_delimiter = ',', default_value = "1,2,4,8")]
-    pub(crate) budget: Vec<u32>,
-    /// Image width and height, e.g. `96x96`; must match the reference (default: the reference's size).
-    #[arg(long, value_parser = parse_size)]
-    pub(crate) size: Option<(u32, u32)>,
-    /// Folder for sweep.csv, sweep.svg, sweep.png, report.html and its images: reference.png, METHOD.png and
-    /// METHOD-error.png (created when missing).
-    #[arg(long, default_value = ".")]
-    pub(crate) out: PathBuf,
-    /// Override a scene setting for every render, e.g. `--set render.photons.pass_photons=20000`; repeatable.
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub(crate) set: Vec<String>,
     #[command(flatten)]

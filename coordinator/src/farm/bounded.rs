@@ -75,7 +75,7 @@ pub struct Bound {
     /// `None` for the unbiased methods.
     pub bias_alpha: Option<f32>,
     /// Stop after exactly this many passes (at most [`MAX_PASSES`]): a render of a fixed budget in rounds, for
-    /// its error estimate (`sweep`).
+    /// its error estimate (`photon-sweep`).
     pub passes: Option<u32>,
     /// Estimate the error after each round (implied by `target_error`). Rounds then at most double the passes,
     /// so that the estimates come at a steady pace.

@@ -10,6 +10,20 @@ use photon_core::scene::RenderSettings;
 use std::fmt;
 use std::path::Path;
 
+/// Four significant digits, in scientific notation outside [0.001, 10 000): the numbers of `compare` and of the
+/// sweep's tables.
+pub fn sig(x: f64) -> String {
+    let a = x.abs();
+    if x == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if (1e-3..1e4).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
 /// One worker's line in the final report.
 #[derive(Clone, Debug)]
 pub struct WorkerReport {

@@ -10,8 +10,10 @@
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 bin=${PHOTON_BIN:-target/release}
-[ -x "$bin/photon-coordinator" ] || cargo build --release -p photon-coordinator -p photon-worker
+[ -x "$bin/photon-coordinator" ] && [ -x "$bin/photon-sweep" ] ||
+  cargo build --release -p photon-coordinator -p photon-worker -p photon-sweep
 pc="$bin/photon-coordinator"
+sweep_bin="$bin/photon-sweep"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 out=docs/figures/sweep
@@ -25,7 +27,7 @@ sweep() {
   while [ "$1" != "--" ]; do ref+=("$1"); shift; done
   shift
   time "$pc" reference "$scene" -o "$work/$name-ref.exr" --size "$size" "${ref[@]}"
-  time "$pc" sweep "$scene" --reference "$work/$name-ref.exr" --budget "${BUDGET:-1,2,4,8,16,32}" --out "$work/$name" "$@"
+  time "$sweep_bin" "$scene" --reference "$work/$name-ref.exr" --budget "${BUDGET:-1,2,4,8,16,32}" --out "$work/$name" "$@"
   rm -rf "${out:?}/$name"
   cp -r "$work/$name" "$out/$name"
 }
