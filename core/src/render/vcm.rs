@@ -155,39 +155,31 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
         .collect::<Result<_, RunError>>()?;
     // The chunks joined in order, each array gathered in parallel: a serial join (a copy of every vertex into
     // fresh memory) kept one core busy and the other idle for a tenth of an iteration.
-    let vertices: Vec<&[LightVertex]> = chunks.iter().map(|c| c.0.as_slice()).collect();
-    let splats: Vec<&[Splat]> = chunks.iter().map(|c| c.2.as_slice()).collect();
-    let firsts = first_indices(&vertices);
+    let (vertices, firsts) = join(&chunks.iter().map(|c| c.0.as_slice()).collect::<Vec<_>>());
+    let (splats, _) = join(&chunks.iter().map(|c| c.2.as_slice()).collect::<Vec<_>>());
     let ends = (0..n).into_par_iter().map(|j| chunks[j / CHUNK].1[j % CHUNK] + firsts[j / CHUNK] as u32).collect();
     let rays = chunks.iter().map(|c| c.3).sum();
-    Ok(LightPaths { vertices: join(&vertices), ends, splats: join(&splats), rays })
+    Ok(LightPaths { vertices, ends, splats, rays })
 }
 
-/// The index in the joined array of each part's first item.
-fn first_indices<T>(parts: &[&[T]]) -> Vec<usize> {
-    parts
-        .iter()
-        .scan(0usize, |next, p| {
-            let first = *next;
-            *next += p.len();
-            Some(first)
-        })
-        .collect()
-}
-
-/// `parts` joined in order, copied in parallel into the new array: item `i` comes from the last part whose first
-/// index is at most `i` (that part is not empty).
-fn join<T: Copy + Send + Sync>(parts: &[&[T]]) -> Vec<T> {
-    let firsts = first_indices(parts);
-    let total = parts.iter().map(|p| p.len()).sum::<usize>();
-    (0..total)
+/// `parts` joined in order, copied in parallel into the new array, and the index there of each part's first
+/// item: item `i` comes from the last part whose first index is at most `i` (that part is not empty).
+fn join<T: Copy + Send + Sync>(parts: &[&[T]]) -> (Vec<T>, Vec<usize>) {
+    let mut firsts = Vec::with_capacity(parts.len());
+    let mut total = 0usize;
+    for p in parts {
+        firsts.push(total);
+        total += p.len();
+    }
+    let joined = (0..total)
         .into_par_iter()
         .with_min_len(1 << 12)
         .map(|i| {
             let c = firsts.partition_point(|&f| f <= i) - 1;
             parts[c][i - firsts[c]]
         })
-        .collect()
+        .collect();
+    (joined, firsts)
 }
 
 /// Bytes that `subpaths` light subpaths with `vertices` vertices and `splats` splats in all store: each vertex
