@@ -11,7 +11,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     // worker and the locked dependency versions). Two binaries with the same id render the same pixels from the
     // same blobs; a coordinator and a worker with different ids refuse to work together. The coordinator's own
     // command-line code is left out, so changing it does not force redeploying workers.
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    // Read when the script runs, not when it is compiled: a script compiled for one checkout and reused by
+    // another (worktrees sharing a target folder) must hash the files of the checkout it builds.
+    let root = PathBuf::from(std::env::var_os("CARGO_MANIFEST_DIR").ok_or("CARGO_MANIFEST_DIR is not set")?).join("..");
     let mut files = Vec::new();
     for dir in ["core/src", "proto/src", "worker/src"] {
         collect(&root.join(dir), &mut files)?;
