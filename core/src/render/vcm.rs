@@ -45,7 +45,9 @@
 //! one camera sample per pass: the subpaths here do not cross media. Light tracing (`lt`) sees nothing through
 //! mirror or glass directly in front of the camera, as no light subpath can connect there.
 
+mod join;
 mod mis;
+mod splats;
 
 pub use mis::{Iteration, MisState, weights};
 
@@ -65,8 +67,10 @@ use crate::prepare::budget::{LIGHT_VERTEX_BYTES, MERGE_TREE_BYTES_PER_VERTEX, SP
 use crate::prepare::tracer::Tracer;
 use crate::run::{Guard, RunError};
 use glam::Vec3A;
+use join::join;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use rayon::prelude::*;
+use splats::{Bands, ChunkSplats, Splat, Splats};
 use std::f32::consts::{FRAC_1_PI, PI};
 use std::ops::Range;
 use std::time::Instant;
@@ -99,11 +103,8 @@ pub fn continuation(bsdf: &Bsdf, wo: Vec3A) -> f32 {
     if q.is_finite() { q.clamp(0.0, 1.0) } else { 0.0 }
 }
 
-/// One light-tracing contribution: a pixel index (`y·width + x`) and radiance.
-type Splat = (u32, Rgb);
-
 /// The vertices, subpath ends, splats and rays of one parallel chunk of light subpaths.
-type LightChunk = (Vec<LightVertex>, Vec<u32>, Vec<Splat>, u64);
+type LightChunk = (Vec<LightVertex>, Vec<u32>, ChunkSplats, u64);
 
 /// The light subpaths of one iteration.
 pub struct LightPaths {
@@ -111,8 +112,8 @@ pub struct LightPaths {
     pub vertices: Vec<LightVertex>,
     /// `ends[j]`: one past the last vertex of subpath `j`.
     pub ends: Vec<u32>,
-    /// Light-tracing contributions, in subpath order.
-    pub splats: Vec<Splat>,
+    /// Light-tracing contributions, by band of rows.
+    pub splats: Splats,
     /// Rays traced.
     pub rays: u64,
 }
@@ -130,10 +131,18 @@ impl LightPaths {
 /// stopping when `guard.cancel` is set (checked before every subpath) or when what they store (each vertex
 /// and splat twice, in its chunk and joined, and each vertex's share of the merge index) passes
 /// `guard.storage_bytes` (one count over all subpaths, so the outcome does not depend on the threads).
-pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Guard) -> Result<LightPaths, RunError> {
+/// Returns them with their merge index when `it` merges ([`merge_tree`]; `None` otherwise or when they
+/// cannot be indexed).
+pub fn trace_light_paths(
+    prep: &Prepared,
+    it: &Iteration,
+    pass: u32,
+    guard: &Guard,
+) -> Result<(LightPaths, Option<Tree>), RunError> {
     // The count itself, not `it.light_paths` (an f32, inexact above 2²⁴ pixels).
     let n = prep.camera.width as usize * prep.camera.height as usize;
     let meter = guard.meter("light vertex", "camera.width × camera.height", prep.settings.max_depth);
+    let bands = Bands::new(prep.camera.width, prep.camera.height);
     let chunks: Vec<LightChunk> = (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .map(|c| {
@@ -150,36 +159,23 @@ pub fn trace_light_paths(prep: &Prepared, it: &Iteration, pass: u32, guard: &Gua
                 let (dv, ds) = ((vertices.len() - v0) as u64, (splats.len() - s0) as u64);
                 meter.add(stored_bytes(it, 1, dv, ds))?;
             }
-            Ok((vertices, ends, splats, rays))
+            Ok((vertices, ends, ChunkSplats::new(&splats, &bands), rays))
         })
         .collect::<Result<_, RunError>>()?;
     // The chunks joined in order, each array gathered in parallel: a serial join (a copy of every vertex into
     // fresh memory) kept one core busy and the other idle for a tenth of an iteration.
     let (vertices, firsts) = join(&chunks.iter().map(|c| c.0.as_slice()).collect::<Vec<_>>());
-    let (splats, _) = join(&chunks.iter().map(|c| c.2.as_slice()).collect::<Vec<_>>());
-    let ends = (0..n).into_par_iter().map(|j| chunks[j / CHUNK].1[j % CHUNK] + firsts[j / CHUNK] as u32).collect();
+    // The merge index is built beside the other joins: the first partitions of its build are serial.
+    let (tree, (splats, ends)) = rayon::join(
+        || if it.techniques.merge { merge_tree(&vertices) } else { None },
+        || {
+            let splats = Splats::join(&chunks.iter().map(|c| &c.2).collect::<Vec<_>>(), bands);
+            let ends = (0..n).into_par_iter().map(|j| chunks[j / CHUNK].1[j % CHUNK] + firsts[j / CHUNK] as u32);
+            (splats, ends.collect())
+        },
+    );
     let rays = chunks.iter().map(|c| c.3).sum();
-    Ok(LightPaths { vertices, ends, splats, rays })
-}
-
-/// `parts` joined in order, copied in parallel into the new array, and the index there of each part's first
-/// item: item `i` comes from the last part whose first index is at most `i` (that part is not empty).
-fn join<T: Copy + Send + Sync>(parts: &[&[T]]) -> (Vec<T>, Vec<usize>) {
-    let mut firsts = Vec::with_capacity(parts.len());
-    let mut total = 0usize;
-    for p in parts {
-        firsts.push(total);
-        total += p.len();
-    }
-    let joined = (0..total)
-        .into_par_iter()
-        .with_min_len(1 << 12)
-        .map(|i| {
-            let c = firsts.partition_point(|&f| f <= i) - 1;
-            parts[c][i - firsts[c]]
-        })
-        .collect();
-    (joined, firsts)
+    Ok((LightPaths { vertices, ends, splats, rays }, tree))
 }
 
 /// Bytes that `subpaths` light subpaths with `vertices` vertices and `splats` splats in all store: each vertex
@@ -590,9 +586,9 @@ pub(super) fn render_passes(
             || next.as_ref().map(|next| trace_iteration(prep, next, pass + 1, &beside)),
         );
         rays += camera_rays?;
-        for (s, p) in sums.iter_mut().zip(&pass_sums) {
+        sums.par_iter_mut().zip(&pass_sums).with_min_len(1 << 14).for_each(|(s, p)| {
             *s = s.saturating_add((*p).clamp(0, MAX_UNIT_SUM));
-        }
+        });
         progress(done as u32 + 1);
         ahead = traced_ahead;
         if let Some(next) = next {
@@ -612,12 +608,10 @@ struct TracedIteration {
     seconds: f64,
 }
 
-/// Traces iteration `pass`'s light subpaths within `guard` ([`trace_light_paths`]) and indexes their vertices
-/// when `it` merges.
+/// Traces iteration `pass`'s light subpaths and their merge index within `guard` ([`trace_light_paths`]).
 fn trace_iteration(prep: &Prepared, it: &Iteration, pass: u32, guard: &Guard) -> Result<TracedIteration, RunError> {
     let t0 = Instant::now();
-    let paths = trace_light_paths(prep, it, pass, guard)?;
-    let tree = if it.techniques.merge { merge_tree(&paths.vertices) } else { None };
+    let (paths, tree) = trace_light_paths(prep, it, pass, guard)?;
     if it.techniques.merge && tree.is_none() && !paths.vertices.is_empty() {
         tracing::warn!("pass {pass}: the light vertices could not be indexed; this pass merges nothing");
     }
@@ -646,15 +640,6 @@ fn camera_pass(
         }
     };
     let rays = for_each_pixel(width as usize, rows, pass_sums, guard.cancel, pixel)?;
-    for &(pixel, c) in &traced.paths.splats {
-        let y = pixel / width;
-        if !rows.contains(&y) {
-            continue;
-        }
-        let at = 3 * ((y - rows.start) as usize * width as usize + (pixel % width) as usize);
-        for (s, v) in pass_sums[at..at + 3].iter_mut().zip(c.to_array()) {
-            *s = s.saturating_add(to_fixed(v));
-        }
-    }
+    traced.paths.splats.add_to(rows, pass_sums);
     Ok(rays)
 }
