@@ -103,6 +103,39 @@ fn interrupt_and_resume(job: &'static [&'static str], signal: &str, code: i32, a
     assert!(!partial.exists(), "the partial file is removed once the image is complete");
 }
 
+/// SIGKILL gives the coordinator no chance to write anything: what survives is its last checkpoint. Resumed
+/// from it, the render finishes with the bytes of an uninterrupted one, and removes the file.
+#[test]
+fn a_coordinator_killed_by_sigkill_resumes_from_its_last_checkpoint_to_the_same_bytes() {
+    let want = reference(PATH_JOB);
+    let dir = temp_dir("interrupt", "sigkill");
+    let out = dir.join("out.exr");
+    let partial = dir.join("out.exr.partial");
+    // 300 ms a unit and a checkpoint at most every 100 ms: each checkpoint holds the units finished by then.
+    let worker = WorkerProcess::start(&["--threads", "1", "--test-delay-ms", "300"]);
+    let job = ["--workers", worker.addr.as_str(), "--checkpoint-every", "100ms"];
+    let render = Running::start(&mut command(&out, PATH_JOB, &job));
+    render.wait_for_line("checkpoint: ", 3, LIMIT);
+    assert!(render.signal("KILL"), "the render ended before the signal");
+    let o = render.finish(LIMIT);
+    assert_eq!(o.status.code(), None, "killed by a signal: {}", text(&o));
+    assert!(partial.is_file() && !out.exists(), "{}", text(&o));
+    let held = String::from_utf8_lossy(&o.stderr)
+        .lines()
+        .filter_map(|l| l.split("checkpoint: ").nth(1)?.split(' ').next()?.parse::<u32>().ok())
+        .max()
+        .unwrap_or_else(|| panic!("no checkpoint count: {}", text(&o)));
+    assert!(held >= 3, "{}", text(&o));
+    let o = run_with_timeout(
+        &mut command(&out, PATH_JOB, &[&job[..], &["--resume", partial.to_str().unwrap()]].concat()),
+        LIMIT,
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    assert!(resumed(&o, "strips") >= held, "{}", text(&o));
+    assert!(bits(&out) == want, "the resumed image differs from the uninterrupted one");
+    assert!(!partial.exists(), "the partial file is removed once the image is complete");
+}
+
 #[test]
 fn sigint_keeps_the_finished_strips_and_the_printed_command_resumes_to_the_same_bytes() {
     interrupt_and_resume(PATH_JOB, "INT", 130, 3, "strips");

@@ -103,6 +103,7 @@ fn render(args: RenderArgs) -> Result<()> {
         bound: bound.clone(),
         live: live.as_ref().map(|(board, _)| board.clone()),
         greetings,
+        checkpoint: checkpoint(&args, bound.is_some()),
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -122,7 +123,7 @@ fn render(args: RenderArgs) -> Result<()> {
         Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
     let image = Image { width, height, pixels: std::mem::take(&mut outcome.pixels) };
-    let assemble_s = write_output(&args, &image, settings.exposure)?;
+    let assemble_s = write_output(&args, &image, settings.exposure, !args.no_checkpoint && bound.is_none())?;
     if !in_process {
         print_workers(&outcome.workers);
     }
@@ -150,15 +151,31 @@ fn open_cache(args: &RenderArgs) -> Result<Option<PreparedCache>> {
     })
 }
 
-/// Writes the finished image, and removes the partial file it was resumed from when that is the output's; the
-/// seconds it took.
-fn write_output(args: &RenderArgs, image: &Image, exposure: f32) -> Result<f64> {
+/// The render's checkpoints (`--checkpoint-every`), into the output's partial file; none with
+/// `--no-checkpoint` or for a render `bounded` by time or error. Warns when that file exists and is not the one
+/// resumed from: the first checkpoint replaces it.
+fn checkpoint(args: &RenderArgs, bounded: bool) -> Option<farm::Checkpoint> {
+    if args.no_checkpoint || bounded {
+        return None;
+    }
+    let path = partial_path(&args.output);
+    if path.exists() && args.resume.as_deref() != Some(path.as_path()) {
+        eprintln!(
+            "warning: {} exists and is not resumed (--resume): this render's first checkpoint replaces it",
+            path.display()
+        );
+    }
+    Some(farm::Checkpoint { path, every: args.checkpoint_every })
+}
+
+/// Writes the finished image, and removes the output's partial file when this render wrote checkpoints there
+/// or was resumed from it; the seconds it took.
+fn write_output(args: &RenderArgs, image: &Image, exposure: f32, checkpointed: bool) -> Result<f64> {
     let t = Instant::now();
     image.write(&args.output, exposure)?;
-    if let Some(p) = &args.resume
-        && *p == partial_path(&args.output)
-    {
-        let _ = std::fs::remove_file(p);
+    let partial = partial_path(&args.output);
+    if checkpointed || args.resume.as_deref() == Some(partial.as_path()) {
+        let _ = std::fs::remove_file(&partial);
     }
     Ok(t.elapsed().as_secs_f64())
 }

@@ -22,7 +22,9 @@
 //! shipped again. A worker that holds strips and says nothing past its silence limit is shown as `stalled`. When
 //! no worker is left the render waits [`Options::rejoin_patience`] for one to come back before it gives up.
 //! SIGINT or SIGTERM ([`crate::fleet::interrupt`]) stops the render as a failure does: the strips in flight are
-//! cancelled and the finished ones kept for `--resume` ([`FarmError::Interrupted`]).
+//! cancelled and the finished ones kept for `--resume` ([`FarmError::Interrupted`]). While it runs, the finished
+//! units are also written every few seconds ([`Options::checkpoint`]), so that a coordinator killed without a
+//! word (SIGKILL, the OOM killer, a power cut) loses at most the units of the last interval.
 //!
 //! A result is accepted only if it covers exactly the strip's rows in order, has the right number of sums, each
 //! one the block's units can add up to, and hashes to the checksum the worker computed before sending. A copy
@@ -51,7 +53,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::sync::mpsc::{self, UnboundedSender};
 use tokio::task::{AbortHandle, JoinHandle};
-pub use types::{FarmError, Options, REJOIN_PATIENCE};
+pub use types::{Checkpoint, FarmError, Options, REJOIN_PATIENCE};
 
 /// Renders `job` on `workers`.
 pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> Result<Outcome, FarmError> {
@@ -61,6 +63,7 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
     let mut farm = Farm::new(job, workers, &options)?;
     let mut effects = Effects::new(job, workers, &options, tx, &farm);
     let sessions = start_sessions(job, workers, &options, &effects.tx);
+    let mut checkpoints = partial::Checkpoints::new(options.checkpoint.take(), &farm);
     let mut tick = tokio::time::interval(Duration::from_millis(250));
     let result = loop {
         let end = farm.end(t0.elapsed());
@@ -79,7 +82,9 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
         farm.fill_slots(t0.elapsed());
         effects.perform(farm.take_actions());
         effects.show(&farm, t0.elapsed());
+        checkpoints.at(&farm, t0.elapsed());
     };
+    checkpoints.finish();
     effects.stop(&farm, t0.elapsed(), sessions);
     farm.finish(result, t0.elapsed())
 }

@@ -6,6 +6,7 @@ use crate::fleet::interrupt::{Interrupt, Interrupts};
 use crate::fleet::session::Greeting;
 use crate::job::Partial;
 use crate::out::report::WorkerReport;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// How to render.
@@ -37,6 +38,20 @@ pub struct Options {
     /// rendered on: their sessions go on from the greeting, without a second hello. The others (all of them
     /// when this is empty) are greeted by their sessions.
     pub greetings: Vec<Option<Greeting>>,
+    /// Where and how often the finished units are written while the render runs, so that a coordinator killed
+    /// at any moment (SIGKILL, the OOM killer, a power cut) can be resumed from its last checkpoint; `None`: no
+    /// checkpoints (a render bounded by time or error, which cannot be resumed).
+    pub checkpoint: Option<Checkpoint>,
+}
+
+/// Checkpoints of a render's finished units ([`Options::checkpoint`]).
+#[derive(Clone, Debug)]
+pub struct Checkpoint {
+    /// The partial file (`OUTPUT.partial`, which `--resume` reads).
+    pub path: PathBuf,
+    /// The least time between two checkpoints. It grows to 50 times the last write's duration, so that writing
+    /// checkpoints takes at most 2 % of the render's time whatever the image's size and the disk.
+    pub every: Duration,
 }
 
 /// The default [`Options::rejoin_patience`]: three calls at the longest backoff.
@@ -56,6 +71,7 @@ impl Default for Options {
             bound: None,
             live: None,
             greetings: Vec::new(),
+            checkpoint: None,
         }
     }
 }

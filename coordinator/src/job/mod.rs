@@ -272,9 +272,38 @@ impl Partial {
             .map_err(|cause| JobError::NotPartial { path: path.into(), cause })
     }
 
-    /// Writes the partial file.
+    /// Writes the partial file so that a crash at any moment leaves either the file that was there or this
+    /// one, whole ([`write_atomically`]).
     pub fn write(&self, path: &Path) -> Result<(), JobError> {
-        let bytes = photon_core::codec::encode(self).map_err(|e| JobError::Encode("partial render", e))?;
-        std::fs::write(path, bytes).map_err(|cause| JobError::WritePartial { path: path.into(), cause })
+        write_atomically(path, &self.encode()?)
     }
+
+    /// The partial file's bytes.
+    pub fn encode(&self) -> Result<Vec<u8>, JobError> {
+        photon_core::codec::encode(self).map_err(|e| JobError::Encode("partial render", e))
+    }
+}
+
+/// Writes `bytes` to `path` so that a crash at any moment leaves either the file that was there or this one,
+/// whole: into `PATH.tmp` beside it, flushed to the disk (`fsync`), then renamed over `path`, and the folder
+/// flushed so that the rename itself survives a power cut.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<(), JobError> {
+    use std::io::Write;
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    let written = std::fs::File::create(&tmp).and_then(|mut f| {
+        f.write_all(bytes)?;
+        f.sync_all()
+    });
+    written.and_then(|()| std::fs::rename(&tmp, path)).map_err(|cause| {
+        let _ = std::fs::remove_file(&tmp);
+        JobError::WritePartial { path: path.into(), cause }
+    })?;
+    // Flushing the folder is best effort: some file systems do not open folders for it.
+    let folder = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    if let Ok(d) = std::fs::File::open(folder) {
+        let _ = d.sync_all();
+    }
+    Ok(())
 }
