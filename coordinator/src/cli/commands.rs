@@ -8,7 +8,7 @@ use crate::fleet::interrupt::Interrupts;
 use crate::fleet::{self, session::Greeting};
 use crate::job::delivery::{self, MapDelivery};
 use crate::job::prepared_cache::PreparedCache;
-use crate::job::{Partial, partial_path, prepare_job};
+use crate::job::{Job, Partial, partial_path, prepare_job};
 use crate::measure;
 use crate::out::live::{self, Board, LiveServer};
 use crate::out::report::{Summary, print_workers, sig};
@@ -80,19 +80,16 @@ fn render(args: RenderArgs) -> Result<()> {
         };
     let decide = |prep: &Prepared| delivery::choose(args.photon_maps, prep, &model_farm);
     let (mut job, hits, delivery) = prepare_job(&scene, &args.scene, cache.as_ref(), decide)?;
-    if bound.is_some() {
-        // Whole-image blocks of passes or samples, in rounds.
-        job.passes = Some(crate::farm::bounded::MAX_PASSES);
-    }
-    if delivery.is_some_and(|d| d.mode == MapDelivery::Peers) {
-        job.swarm = Some(std::sync::Arc::new(crate::fleet::swarm::Swarm::new(tls_ca.clone())));
-    }
+    let peers = delivery.is_some_and(|d| d.mode == MapDelivery::Peers);
+    shape_job(&mut job, bound.is_some(), peers, &tls_ca);
     let (width, height) = (job.width, job.height);
     let settings = scene.render.clone();
     let prepare_s = t0.elapsed().as_secs_f64();
     tracing::info!(blob_bytes = job.blob_bytes(), prepare_s, "prepared");
 
     let mut interrupts = rt.block_on(async { crate::fleet::interrupt::watch_signals() });
+    let checkpoint = checkpoint(&args, bound.is_some());
+    let checkpointed = checkpoint.is_some();
     let options = farm::Options {
         token,
         tls_ca,
@@ -103,7 +100,7 @@ fn render(args: RenderArgs) -> Result<()> {
         bound: bound.clone(),
         live: live.as_ref().map(|(board, _)| board.clone()),
         greetings,
-        checkpoint: checkpoint(&args, bound.is_some()),
+        checkpoint,
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -123,7 +120,7 @@ fn render(args: RenderArgs) -> Result<()> {
         Err(e) => return fail_keeping_partial(&args.output, e, settings.integrator),
     };
     let image = Image { width, height, pixels: std::mem::take(&mut outcome.pixels) };
-    let assemble_s = write_output(&args, &image, settings.exposure, !args.no_checkpoint && bound.is_none())?;
+    let assemble_s = write_output(&args, &image, settings.exposure, checkpointed)?;
     if !in_process {
         print_workers(&outcome.workers);
     }
@@ -141,6 +138,17 @@ fn render(args: RenderArgs) -> Result<()> {
         rt.block_on(stop_live(server, args.serve_after, &mut interrupts));
     }
     Ok(())
+}
+
+/// Shapes a prepared job for how it renders: whole-image blocks of passes or samples, in rounds, when `bounded`
+/// by time or error; a swarm when the photon maps pass among `peers` (with the farm's TLS authority).
+fn shape_job(job: &mut Job, bounded: bool, peers: bool, tls_ca: &Option<Vec<u8>>) {
+    if bounded {
+        job.passes = Some(crate::farm::bounded::MAX_PASSES);
+    }
+    if peers {
+        job.swarm = Some(std::sync::Arc::new(crate::fleet::swarm::Swarm::new(tls_ca.clone())));
+    }
 }
 
 /// The prepared-blob cache of `render`, unless `--no-cache` or no folder for it.

@@ -84,7 +84,7 @@ impl Checkpoints {
     /// has passed (the interval, or 50 times the last one's processor time if that is longer) and no write is in
     /// flight. A write that fails is reported once, and tried again at the next interval: the render goes on.
     pub(super) fn at(&mut self, farm: &Farm, now: Duration) {
-        if self.checkpoint.is_none() || self.writing.as_ref().is_some_and(|(_, w)| !w.is_finished()) {
+        if self.writing.as_ref().is_some_and(|(_, w)| !w.is_finished()) {
             return;
         }
         self.collect();

@@ -7,7 +7,7 @@
 //! non-negative fixed-point integer and additions saturate, so each sum is `min(i64::MAX, exact sum)` in any
 //! order; the order is fixed all the same.
 
-use super::super::sums::to_fixed;
+use super::super::sums::add_fixed;
 use super::join::join;
 use crate::Rgb;
 use rayon::prelude::*;
@@ -138,9 +138,7 @@ impl Splats {
                 }
                 let at = 3 * ((y - band_rows.start) as usize * width as usize + (pixel % width) as usize);
                 if let Some(px) = sums.get_mut(at..at + 3) {
-                    for (s, v) in px.iter_mut().zip(c.to_array()) {
-                        *s = s.saturating_add(to_fixed(v));
-                    }
+                    add_fixed(px, c);
                 }
             }
         });
@@ -149,6 +147,7 @@ impl Splats {
 
 #[cfg(test)]
 mod tests {
+    use super::super::super::sums::to_fixed;
     use super::*;
 
     /// Splats of `chunks` chunks over a `width × height` image, some pixels hit many times.
