@@ -3,15 +3,15 @@
 //! The directional albedo ρ(wo) = ∫ f(wo, wi)·|cos θi| dωi (plus the delta lobes) is estimated with the BSDF's
 //! own sampling, as an integrator does: the mean of `f·|cos θi|/pdf` over samples, delta lobes included, in
 //! `Importance` mode (flux). It must not exceed 1 per channel; it must equal `albedo()` for the kinds where
-//! that is exact (Phong at normal incidence too), and stay below it for Phong elsewhere, where `albedo()` is an
-//! upper bound. The non-delta part is
+//! that is exact (Phong at normal incidence too), and stay below it for Phong elsewhere and for the microfacet
+//! lobes (rough metal and glass), where `albedo()` is an upper bound. The non-delta part is
 //! checked once more against an independent quadrature of `f·|cos θi|` over the sphere, which does not use
 //! `pdf` or `sample` at all. Tolerances: 5 standard errors of the Monte Carlo mean, plus the quadrature's own
 //! error estimated by halving its grid, plus 1e-5 for f32 rounding.
 
 mod common;
 
-use common::{Mean, dir, every_kind, flat, integrate_whole_sphere, sampler};
+use common::{Mean, dir, every_kind, flat, integrate_whole_sphere, is_microfacet, sampler};
 use photon_core::material::bsdf::{Bsdf, TransportMode};
 
 const SAMPLES: usize = 200_000;
@@ -45,7 +45,9 @@ fn scattered_flux_is_at_most_the_incident_flux_and_is_the_albedo() {
         for (j, &theta) in THETAS.iter().enumerate() {
             // Phong's albedo() = kd + ks is exact at normal incidence, where its lobe lies wholly above the
             // surface: ∫ (n+2)/(2π)·cos^n θ·cos θ dω = 1. That pins the lobe's normalisation.
-            let exact = !name.starts_with("phong") || theta == 0.0;
+            // A microfacet lobe's albedo() is a bound: single scattering loses what its facets shadow and what
+            // falls below the horizon (the furnace tables in microfacet.rs's tests).
+            let exact = (!name.starts_with("phong") || theta == 0.0) && !is_microfacet(&bxdf);
             for side in [1.0f32, -1.0] {
                 case += 1;
                 let wo = side * dir(theta, 0.4 * j as f32);

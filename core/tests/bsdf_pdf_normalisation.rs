@@ -1,6 +1,7 @@
 //! Claim: `Bsdf::pdf` integrates over the sphere to the probability that `Bsdf::sample` returns a non-delta
 //! direction: 1 for Lambert, 1 for Phong less what its glossy lobe puts below the horizon (nothing at normal
-//! incidence), `diffuse / (diffuse + specular + transmission)` for Mix, and 0 for mirrors and glass.
+//! incidence), `diffuse / (diffuse + specular + transmission)` for Mix, 0 for mirrors and glass (smooth metal
+//! too), and for rough metal and glass 1 less what their visible facets reflect below the horizon.
 //!
 //! The integral is a midpoint quadrature over (θ, φ) whose error is bounded by the change on halving the grid;
 //! the probability is the fraction of 200 000 samples, within 5 binomial standard errors.
@@ -44,6 +45,9 @@ fn pdf_integrates_to_the_non_delta_share() {
                     Bxdf::Phong { .. } if theta == 0.0 => Some(1.0),
                     Bxdf::Phong { .. } => None,
                     Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => Some(0.0),
+                    Bxdf::Conductor { alpha: 0.0, .. } => Some(0.0),
+                    // Visible normals reflect below the horizon now and then: the share is below 1.
+                    Bxdf::Conductor { .. } | Bxdf::RoughDielectric { .. } => None,
                     Bxdf::Mix { diffuse, specular, transmission, .. } => {
                         Some(f64::from(diffuse / (diffuse + specular + transmission)))
                     }

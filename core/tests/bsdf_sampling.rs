@@ -5,7 +5,9 @@
 //! non-delta samples are binned, and the expected counts are scaled to their number: this tests the shape of
 //! the distribution; how much probability the non-delta lobes get is `bsdf_pdf_normalisation.rs`'s claim
 //! (the quadrature error of 1 − ∫pdf would swamp the few `None` samples of a narrow lobe). Cells expecting
-//! fewer than 5 samples are pooled. Lambert and Phong (several exponents) and the diffuse part of Mix, at several `wo`.
+//! fewer than 5 samples are pooled. Lambert and Phong (several exponents), the diffuse part of Mix, and rough
+//! metal and glass (both sides, so refraction into and out of the denser side), at several `wo`. The narrower
+//! microfacet lobes are tested on a grid about their peak in `microfacet.rs`'s own tests.
 //! Each test rejects at significance 1 − (1 − 0.01)^(1/cases) (Šidák), so that the whole file wrongly fails
 //! once in a hundred seeds; the seeds are fixed, so the outcome is reproducible.
 
@@ -79,6 +81,15 @@ fn cases() -> Vec<(String, Bsdf, Vec3A)> {
     bxdfs.push((
         "mix".into(),
         Bxdf::Mix { color: Rgb::splat(0.5), diffuse: 0.4, specular: 0.2, transmission: 0.3, eta: 1.5 },
+    ));
+    for r in [0.3f32, 0.6] {
+        let alpha = r * r;
+        bxdfs.push((format!("gold r={r}"), Bxdf::Conductor { fresnel: common::gold(), alpha }));
+        bxdfs.push((format!("rough glass r={r}"), Bxdf::RoughDielectric { eta: 1.5, tint: Rgb::ONE, alpha }));
+    }
+    bxdfs.push((
+        "rough glass 1/1.5 r=0.5".into(),
+        Bxdf::RoughDielectric { eta: 1.0 / 1.5, tint: Rgb::ONE, alpha: 0.25 },
     ));
     for (name, bxdf) in bxdfs {
         for wo in wos {

@@ -3,7 +3,7 @@
 //! ([`shadow_transmittance`]). Shared by every method's camera paths.
 
 use crate::Rgb;
-use crate::geometry::Hit;
+use crate::geometry::{Hit, NONE};
 use crate::material::Material;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::{Ray, power_heuristic};
@@ -72,6 +72,48 @@ pub fn sample_one_light(
         let w = power_heuristic(light_pdf, bsdf.pdf(wo, ls.wi));
         f * ls.li * (cos * w / light_pdf)
     }
+}
+
+/// Direct light at the vertex where `final-gather` and `progressive` estimate density: light sampling alone ([`sample_one_light`] without MIS) at a surface
+/// whose lobes are diffuse, and at a glossy one (a metal rough enough to hold photons, a Phong lobe without
+/// diffuse part; [`crate::material::bsdf::Bxdf::photon_alpha`] finite) one light sample and one BSDF sample
+/// joined by the power heuristic (Veach 1997, §9.2): there light sampling alone sends rare, bright samples into
+/// the narrow lobe. The BSDF sample counts only the emission it hits first; light that reaches it through
+/// mirror or glass is the caustic estimate's. In a scene with media, light sampling alone everywhere.
+pub fn photon_vertex_direct(tracer: &mut Tracer, hit: &Hit, bsdf: &Bsdf, wo: Vec3A, medium: Option<Medium>) -> Rgb {
+    let prep = tracer.prep;
+    if prep.media.is_some() || !bsdf.bxdf.photon_alpha().is_finite() {
+        return sample_one_light(tracer, hit, bsdf, wo, medium, false);
+    }
+    let mut l = sample_one_light(tracer, hit, bsdf, wo, medium, true);
+    let Some(bs) = tracer.sample_bsdf(bsdf, wo, TransportMode::Radiance) else { return l };
+    if bs.delta {
+        return l;
+    }
+    let ray = hit.spawn_ray(bs.wi);
+    if let Some(h) = tracer.intersect(&ray, f32::INFINITY) {
+        let (le, w) = emission(prep, &h, &ray, false, bs.pdf);
+        if le != Rgb::ZERO {
+            l += bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance) * le * w;
+        }
+    }
+    l
+}
+
+/// Emission at `hit`, reached along `ray` from a surface vertex (or the camera), and its MIS weight: 1 after a
+/// delta lobe or the camera (`prev_delta`), else the power heuristic of the BSDF sample's pdf `prev_pdf` against
+/// light sampling's.
+pub(super) fn emission(prep: &Prepared, hit: &Hit, ray: &Ray, prev_delta: bool, prev_pdf: f32) -> (Rgb, f32) {
+    if hit.light == NONE {
+        return (Rgb::ZERO, 0.0);
+    }
+    let Some(light) = prep.lights.lights.get(hit.light as usize) else { return (Rgb::ZERO, 0.0) };
+    let le = light.le(hit, -ray.d);
+    if le == Rgb::ZERO || prev_delta {
+        return (le, 1.0);
+    }
+    let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(ray, hit);
+    (le, power_heuristic(prev_pdf, light_pdf))
 }
 
 /// The transmittance from `origin`, in `medium`, to `target`: 0 when a surface is in the way, else the product

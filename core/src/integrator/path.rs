@@ -8,13 +8,11 @@
 //! that first BSDF sample. That bounce (`PathState::bounce`) is the volumetric path tracer's too
 //! ([`super::volume::path_li`]).
 
-use super::direct::sample_one_light;
+use super::direct::{emission, sample_one_light};
 use crate::Rgb;
-use crate::geometry::{Hit, NONE};
 use crate::material::bsdf::{Bsdf, TransportMode};
+use crate::math::Ray;
 use crate::math::rng::Sampler;
-use crate::math::{Ray, power_heuristic};
-use crate::prepare::Prepared;
 use crate::prepare::tracer::Tracer;
 use glam::Vec3A;
 
@@ -103,22 +101,6 @@ impl PathState {
         }
         self.beta.is_finite().then_some(bs.wi)
     }
-}
-
-/// Emission at `hit`, reached along `ray` from a surface vertex (or the camera), and its MIS weight: 1 after a
-/// delta lobe or the camera (`prev_delta`), else the power heuristic of the BSDF sample's pdf `prev_pdf` against
-/// light sampling's.
-pub(super) fn emission(prep: &Prepared, hit: &Hit, ray: &Ray, prev_delta: bool, prev_pdf: f32) -> (Rgb, f32) {
-    if hit.light == NONE {
-        return (Rgb::ZERO, 0.0);
-    }
-    let Some(light) = prep.lights.lights.get(hit.light as usize) else { return (Rgb::ZERO, 0.0) };
-    let le = light.le(hit, -ray.d);
-    if le == Rgb::ZERO || prev_delta {
-        return (le, 1.0);
-    }
-    let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(ray, hit);
-    (le, power_heuristic(prev_pdf, light_pdf))
 }
 
 /// Russian roulette: past [`RR_START`] bounces, a path whose throughput (η² scaling undone: `eta_scale` is the

@@ -6,7 +6,7 @@
 //!
 //! Both share the camera-path walk ([`walk`]).
 
-use super::direct::sample_one_light;
+use super::direct::photon_vertex_direct;
 use super::visible::{VisiblePoint, visible_point, visible_point_in};
 use super::volume::map_volume_estimate;
 use crate::Rgb;
@@ -35,7 +35,7 @@ pub fn li(tracer: &mut Tracer, maps: &PhotonMaps, final_gather: bool, ray: Ray) 
         let Some((b, hit, bsdf, wo)) = vp.vertex else { break };
         beta *= b;
         if final_gather {
-            l += beta * sample_one_light(tracer, &hit, &bsdf, wo, vp.medium, false);
+            l += beta * photon_vertex_direct(tracer, &hit, &bsdf, wo, vp.medium);
             if let Some(caustic) = &maps.caustic {
                 l += beta * photon_radiance(caustic, &maps.estimator, &hit, &bsdf, wo);
             }

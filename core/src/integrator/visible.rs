@@ -37,7 +37,8 @@ pub struct Segment<'a> {
 /// scattered towards the ray's origin along the segment, not yet weighted by the path's throughput.
 pub type VolumeEstimate<'a> = dyn FnMut(&mut Tracer, &Segment) -> Rgb + 'a;
 
-/// Follows `ray` through mirror and glass to the first surface with a non-delta component. At a surface with
+/// Follows `ray` through mirror and glass to the first surface with a non-delta component rough enough to store
+/// photons ([`Bsdf::stores_photons`]); through a glossier lobe it walks on by sampling it. At a surface with
 /// both (the mixture), the path continues only if the delta lobe is sampled, and that surface is the vertex.
 /// In a scene without media.
 pub fn visible_point(tracer: &mut Tracer, max_depth: u32, ray: Ray) -> VisiblePoint {
@@ -94,7 +95,7 @@ pub fn visible_point_in(
         if bsdf.black_from(wo) {
             break;
         }
-        if bsdf.has_non_delta() {
+        if bsdf.stores_photons(prep.settings.photons.min_roughness) {
             return VisiblePoint { le, volume: in_volume, vertex: Some((beta, hit, bsdf, wo)), medium };
         }
         // A zero BSDF value, which `sample_bsdf` refuses, would have ended the walk at the test below.

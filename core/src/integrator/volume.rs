@@ -24,8 +24,8 @@
 //! mapping estimates single scattering by [`in_scattering`] at the same point and reads its pass's volume map of
 //! photons that have bounced at least once.
 
-use super::direct::{sample_one_light, shadow_transmittance};
-use super::path::{PathState, emission, roulette};
+use super::direct::{emission, sample_one_light, shadow_transmittance};
+use super::path::{PathState, roulette};
 use super::visible::Segment;
 use crate::Rgb;
 use crate::geometry::NONE;

@@ -5,8 +5,8 @@
 //! The lobes themselves work in the local shading frame, where the shading normal is +z and `cos θ = w.z`.
 //!
 //! ## Conventions
-//! - [`Bsdf::f`] and [`Bsdf::pdf`] cover the non-delta lobes only (Lambert, Phong); mirror and glass are zero
-//!   there. [`Bsdf::sample`] draws from every lobe.
+//! - [`Bsdf::f`] and [`Bsdf::pdf`] cover the non-delta lobes only (Lambert, Phong, rough metal and glass);
+//!   mirror, smooth metal and glass are zero there. [`Bsdf::sample`] draws from every lobe.
 //! - An integrator updates its throughput with `beta *= s.f * |wi·ns| / s.pdf` for every sample `s`. For a delta
 //!   lobe we follow pbrt: `f = (reflectance or transmittance) / |cos θi|` and `pdf` is the discrete probability
 //!   of choosing that lobe, so the same formula gives `beta *= reflectance / probability`.
@@ -27,8 +27,15 @@
 //!   transmitted sample is scaled by `1/η'²` (η' = η_transmitted / η_incident as seen from `wo`), because
 //!   radiance, unlike flux, is compressed into a narrower cone on entering a denser medium (Veach 1997, §5.2;
 //!   pbrt-v4 §9.5.2). Photons carry flux and use [`TransportMode::Importance`], without that factor.
-//! - Lambert and Phong are reciprocal, `f(wo, wi) = f(wi, wo)`; the transport mode does not change them.
+//! - Lambert, Phong and the conductor are reciprocal, `f(wo, wi) = f(wi, wo)`; the transport mode does not
+//!   change them.
+//! - Rough glass ([`Bxdf::RoughDielectric`], [`super::microfacet`]) reflects and refracts through non-delta
+//!   lobes. Its refracted value carries the `1/η'²` of radiance mode like smooth glass, so it is reciprocal in
+//!   the adjoint sense, `f_radiance(wo, wi) = f_importance(wi, wo)`. A pair must lie on the same sides of the
+//!   geometric and the shading normal to scatter (a reflection on one side of both, a refraction across both):
+//!   a rough lobe has no symmetric way to reach the pairs they disagree on, so those carry no light.
 
+use super::microfacet::{self, ConductorFresnel, SMOOTH_ALPHA, TrowbridgeReitz};
 use crate::Rgb;
 use crate::math::fmath;
 use crate::math::{Frame, cosine_hemisphere, fresnel_dielectric, luminance, refract};
@@ -76,6 +83,24 @@ pub enum Bxdf {
         eta: f32,
         /// Multiplies both the reflected and the transmitted light.
         tint: Rgb,
+    },
+    /// A conductor (metal): a Trowbridge–Reitz microfacet lobe with conductor Fresnel (Walter et al. 2007), or
+    /// for `alpha` below [`SMOOTH_ALPHA`] a perfect mirror with that Fresnel reflectance. Reflects on both sides.
+    Conductor {
+        /// The Fresnel reflectance: a complex index of refraction, or glTF's Schlick form with a base colour.
+        fresnel: ConductorFresnel,
+        /// The distribution's width `α = roughness²`.
+        alpha: f32,
+    },
+    /// A rough dielectric boundary: Trowbridge–Reitz facets that reflect and refract (Walter et al. 2007).
+    RoughDielectric {
+        /// Index of refraction of the inside (the side opposite the geometric normal) over the outside.
+        eta: f32,
+        /// Multiplies both the reflected and the transmitted light.
+        tint: Rgb,
+        /// The distribution's width `α = roughness²`, at least [`SMOOTH_ALPHA`] (smooth glass is
+        /// [`Bxdf::Dielectric`]).
+        alpha: f32,
     },
     /// The origin's mixture `diffuse·Lambert(color) + specular·mirror + transmission·glass(eta)`; the weights
     /// sum to at most 1, the rest is absorbed.
@@ -151,13 +176,33 @@ impl Bsdf {
     /// and glass, and whenever `wo` and `wi` are not on the same side of the geometric normal; their sides of
     /// the shading normal do not matter (the black-fringe rule, see the module docs).
     pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Rgb {
-        // The non-delta lobes are reflective and reciprocal: the transport mode does not change them.
-        let _ = mode;
-        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 || self.black_from(wo) {
+        if self.black_from(wo) {
             return Rgb::ZERO;
         }
-        let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
-        self.f_local(wo, wi)
+        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+        if let Bxdf::RoughDielectric { eta, tint, alpha } = self.bxdf {
+            if !self.crosses_consistently(wo, wi, wo_l, wi_l) {
+                return Rgb::ZERO;
+            }
+            let dist = TrowbridgeReitz { alpha };
+            return tint * microfacet::dielectric_f(&dist, eta, wo_l, wi_l, mode == TransportMode::Radiance);
+        }
+        // Every other non-delta lobe is reflective and reciprocal: the transport mode does not change it.
+        if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 {
+            return Rgb::ZERO;
+        }
+        self.f_local(wo_l, wi_l)
+    }
+
+    /// Whether a pair of a lobe that both reflects and transmits is on sides that agree: a reflection about the
+    /// shading normal (`wo_l`, `wi_l` on one side of it) stays on one side of the geometric surface, and a
+    /// refraction crosses both. A pair the shading and geometric normals disagree on carries no light (the
+    /// light-leak rule; unlike the diffuse lobes, a rough dielectric has no symmetric way to reach it).
+    #[inline]
+    fn crosses_consistently(&self, wo: Vec3A, wi: Vec3A, wo_l: Vec3A, wi_l: Vec3A) -> bool {
+        let geometric = wo.dot(self.ng) * wi.dot(self.ng);
+        let shading = wo_l.z * wi_l.z;
+        geometric != 0.0 && (geometric > 0.0) == (shading > 0.0)
     }
 
     /// The factor that turns the sample weight `f·|wi·ns|/pdf` of a camera path into that of a light path
@@ -210,8 +255,18 @@ impl Bsdf {
     /// The solid-angle density with which [`Bsdf::sample`] draws `wi` from its non-delta lobes, lobe selection
     /// probabilities included. Zero when the BSDF has no non-delta lobe.
     pub fn pdf(&self, wo: Vec3A, wi: Vec3A) -> f32 {
+        if self.black_from(wo) {
+            return 0.0;
+        }
+        if let Bxdf::RoughDielectric { eta, alpha, .. } = self.bxdf {
+            let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
+            if !self.crosses_consistently(wo, wi, wo_l, wi_l) {
+                return 0.0;
+            }
+            return microfacet::dielectric_pdf(&TrowbridgeReitz { alpha }, eta, wo_l, wi_l);
+        }
         let side = wo.dot(self.ng);
-        if side * wi.dot(self.ng) <= 0.0 || self.black_from(wo) {
+        if side * wi.dot(self.ng) <= 0.0 {
             return 0.0;
         }
         let (wo, wi) = (self.frame.to_local(wo), self.frame.to_local(wi));
@@ -225,6 +280,10 @@ impl Bsdf {
                 (1.0 - p_glossy) * cosine + p_glossy * phong_lobe_pdf(wo, wi, exponent)
             }
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => 0.0,
+            Bxdf::Conductor { alpha, .. } if alpha < SMOOTH_ALPHA => 0.0,
+            Bxdf::Conductor { alpha, .. } => microfacet::conductor_pdf(&TrowbridgeReitz { alpha }, wo, wi),
+            // Handled above.
+            Bxdf::RoughDielectric { .. } => 0.0,
             Bxdf::Mix { diffuse, specular, transmission, .. } => {
                 let sum = diffuse + specular + transmission;
                 if sum > 0.0 { diffuse / sum * cosine } else { 0.0 }
@@ -260,6 +319,33 @@ impl Bsdf {
             }
             Bxdf::Mirror { r } => self.sample_mirror(wo, wo_l, r, 1.0),
             Bxdf::Dielectric { eta, tint } => self.sample_dielectric(wo, wo_l, eta, tint, u, mode),
+            Bxdf::Conductor { fresnel, alpha } if alpha < SMOOTH_ALPHA => {
+                self.sample_mirror(wo, wo_l, fresnel.eval(wo_l.z), 1.0)
+            }
+            Bxdf::Conductor { fresnel, alpha } => {
+                let s = microfacet::conductor_sample(&TrowbridgeReitz { alpha }, &fresnel, wo_l, u2)?;
+                let wi = self.frame.to_world(s.wi);
+                // A reflection about the shading frame that crosses the geometric surface would leak light.
+                (wo.dot(self.ng) * wi.dot(self.ng) > 0.0).then_some(BsdfSample {
+                    wi,
+                    f: s.f,
+                    pdf: s.pdf,
+                    delta: false,
+                    eta: 1.0,
+                })
+            }
+            Bxdf::RoughDielectric { eta, tint, alpha } => {
+                let radiance = mode == TransportMode::Radiance;
+                let s = microfacet::dielectric_sample(&TrowbridgeReitz { alpha }, eta, wo_l, u, u2, radiance)?;
+                let wi = self.frame.to_world(s.wi);
+                self.crosses_consistently(wo, wi, wo_l, s.wi).then_some(BsdfSample {
+                    wi,
+                    f: tint * s.f.x,
+                    pdf: s.pdf,
+                    delta: false,
+                    eta: s.eta,
+                })
+            }
             Bxdf::Mix { diffuse, specular, transmission, eta, .. } => {
                 let sum = diffuse + specular + transmission;
                 if sum <= 0.0 {
@@ -296,7 +382,10 @@ impl Bsdf {
         match self.bxdf {
             Bxdf::Lambert { r } | Bxdf::Mirror { r } => r,
             Bxdf::Phong { kd, ks, .. } => (kd + ks).min(Rgb::ONE),
-            Bxdf::Dielectric { tint, .. } => tint,
+            Bxdf::Dielectric { tint, .. } | Bxdf::RoughDielectric { tint, .. } => tint,
+            // The Fresnel reflectance at the view angle: exact for the mirror, an upper bound for a rough
+            // lobe, which loses what its facets shadow and what falls below the horizon.
+            Bxdf::Conductor { fresnel, .. } => fresnel.eval(self.frame.to_local(wo).z),
             Bxdf::Mix { color, diffuse, specular, transmission, .. } => {
                 (diffuse * color + Rgb::splat(specular + transmission)).min(Rgb::ONE)
             }
@@ -308,10 +397,20 @@ impl Bsdf {
         !self.has_non_delta()
     }
 
-    /// Whether some lobe is not a delta lobe (Lambert, Phong, the diffuse part of Mix): photons are stored here
-    /// and direct light is worth sampling.
+    /// Whether some lobe is not a delta lobe (Lambert, Phong, rough conductors and glass, the diffuse part of
+    /// Mix): direct light is worth sampling here.
     pub fn has_non_delta(&self) -> bool {
         self.bxdf.has_non_delta()
+    }
+
+    /// Whether the photon methods store photons and estimate density here: a non-delta lobe at least
+    /// `min_roughness` rough (perceptual roughness, `α = r²`; see [`Bxdf::photon_alpha`]). Elsewhere their
+    /// paths walk on through the surface as through a mirror.
+    #[inline]
+    pub fn stores_photons(&self, min_roughness: f32) -> bool {
+        // A transmitting lobe (α 0) never stores photons, even at `min_roughness` 0.
+        let alpha = self.bxdf.photon_alpha();
+        self.has_non_delta() && alpha > 0.0 && alpha >= min_roughness * min_roughness
     }
 
     /// The non-delta part in the local frame, for directions on the same geometric side (checked by the
@@ -323,6 +422,10 @@ impl Bsdf {
                 kd * FRAC_1_PI + ks * ((exponent + 2.0) * (0.5 * FRAC_1_PI) * phong_cos_pow(wo, wi, exponent))
             }
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => Rgb::ZERO,
+            Bxdf::Conductor { alpha, .. } if alpha < SMOOTH_ALPHA => Rgb::ZERO,
+            Bxdf::Conductor { fresnel, alpha } => microfacet::conductor_f(&TrowbridgeReitz { alpha }, &fresnel, wo, wi),
+            // Evaluated by `f` itself: it both reflects and transmits.
+            Bxdf::RoughDielectric { .. } => Rgb::ZERO,
             Bxdf::Mix { color, diffuse, .. } => color * (diffuse * FRAC_1_PI),
         }
     }
@@ -438,17 +541,36 @@ impl Bxdf {
     /// Whether some lobe is not a delta lobe.
     pub fn has_non_delta(&self) -> bool {
         match *self {
-            Bxdf::Lambert { .. } | Bxdf::Phong { .. } => true,
+            Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::RoughDielectric { .. } => true,
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => false,
+            Bxdf::Conductor { alpha, .. } => alpha >= SMOOTH_ALPHA,
             Bxdf::Mix { diffuse, .. } => diffuse > 0.0,
+        }
+    }
+
+    /// The width of the narrowest non-delta lobe as a Trowbridge–Reitz `α`: the photon methods store photons
+    /// and estimate density only where it is at least their threshold (see [`crate::scene`]'s
+    /// `photons.min_roughness`), and walk on through narrower lobes. Infinite for diffuse lobes (Lambert, the
+    /// mixture); for a Phong lobe of exponent n the `α` of equal width, `√(2/(n+2))` (Walter et al. 2007, eq. 33,
+    /// which gives the Beckmann width; GGX's is close enough for a threshold); 0 for a lobe that transmits,
+    /// whose density estimate would mix the light of its two sides. 0 when there is no non-delta lobe.
+    pub fn photon_alpha(&self) -> f32 {
+        match *self {
+            Bxdf::Lambert { .. } => f32::INFINITY,
+            Bxdf::Mix { diffuse, .. } if diffuse > 0.0 => f32::INFINITY,
+            Bxdf::Phong { kd, exponent, .. } if luminance(kd) > 0.0 || exponent <= 0.0 => f32::INFINITY,
+            Bxdf::Phong { exponent, .. } => (2.0 / (exponent + 2.0)).sqrt(),
+            Bxdf::Conductor { alpha, .. } if alpha >= SMOOTH_ALPHA => alpha,
+            _ => 0.0,
         }
     }
 
     /// Whether some lobe is a delta lobe (mirror or glass).
     pub fn has_delta(&self) -> bool {
         match *self {
-            Bxdf::Lambert { .. } | Bxdf::Phong { .. } => false,
+            Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::RoughDielectric { .. } => false,
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => true,
+            Bxdf::Conductor { alpha, .. } => alpha < SMOOTH_ALPHA,
             Bxdf::Mix { specular, transmission, .. } => specular > 0.0 || transmission > 0.0,
         }
     }

@@ -19,6 +19,22 @@
 //! type = "dielectric"
 //! eta = 1.5
 //!
+//! [materials.frosted_glass]
+//! type = "dielectric"
+//! eta = 1.5
+//! roughness = 0.4
+//!
+//! [materials.gold]
+//! type = "conductor"
+//! eta = [0.143, 0.374, 1.442]
+//! k = [3.983, 2.385, 1.603]
+//! roughness = 0.25
+//!
+//! [materials.brushed]
+//! type = "conductor"
+//! color = [0.95, 0.64, 0.54]
+//! roughness = 0.5
+//!
 //! [materials.boundary]
 //! type = "interface"
 //!
@@ -43,6 +59,15 @@
 //! - `dielectric`: smooth glass with exact unpolarised Fresnel reflection, refraction and total internal
 //!   reflection. `eta`: index of refraction of the inside (the side the surface normal points away from) over
 //!   the outside (default 1.5, > 0); `tint` multiplies reflected and transmitted light (default 1).
+//!   `roughness` (default 0, from 0 to 1) makes it rough glass: Trowbridge–Reitz facets of width `α = r²`
+//!   that reflect and refract (Walter et al. 2007), sampled by their visible normals (Heitz 2018). Below
+//!   `r ≈ 0.032` (`α <` [`SMOOTH_ALPHA`]) it is the smooth glass.
+//! - `conductor`: a metal, Trowbridge–Reitz facets with a conductor's Fresnel reflectance. Either a complex
+//!   index of refraction, `eta` and `k` together (per channel, `eta > 0`, `k ≥ 0`, constants; exact Fresnel,
+//!   pbrt-v3 §8.2.1), or `color`, the reflectance at normal incidence with Schlick's approximation (the glTF
+//!   metal); with neither it is white. `roughness` (default 0.3, from 0 to 1), `α = r²`; below `r ≈ 0.032` a
+//!   perfect mirror with that Fresnel reflectance. Single scattering: a rough metal loses the light its facets
+//!   shadow (under 1 % to `r = 0.2`, a third at `r = 1` and normal incidence; docs/RESULTS.md).
 //! - `interface`: no surface at all, only the boundary of a medium (pbrt-v4's `interface` material): light
 //!   passes it unchanged in direction and power, shadow rays pass it, and it is never a path vertex. A closed
 //!   object of this material holds its `interior` medium (a cloud box) or vacuum (a region the global fog
@@ -52,7 +77,7 @@
 //!   (each ≥ 0, default 0, so a mix names the parts it has) sum to at most 1, and the rest is absorbed;
 //!   `eta` as for `dielectric` (default 1.5).
 //!
-//! `lambert`, `phong` and `mirror` take `two_sided` (default `true`): a one-sided surface (`false`) reflects only
+//! `lambert`, `phong`, `mirror` and `conductor` take `two_sided` (default `true`): a one-sided surface (`false`) reflects only
 //! on its front, the side its geometric normal points to, and is black from behind, where it absorbs the light
 //! and the photons that arrive (Mitsuba 3's rule for its BSDFs). The default follows pbrt-v4, Cycles and
 //! LuxCore, whose diffuse and glossy surfaces reflect on both sides: meshes from the field are often wound
@@ -62,11 +87,13 @@
 //! under the material's path.
 
 pub mod bsdf;
+pub mod microfacet;
 pub mod texture;
 
 use crate::error::FieldError;
 use crate::geometry::Hit;
 use bsdf::{Bsdf, Bxdf};
+use microfacet::{ConductorFresnel, SMOOTH_ALPHA};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 pub use texture::{BumpMap, ImageRef, NormalMap, TexelImage, Texture};
 
@@ -140,12 +167,42 @@ pub enum Material {
         /// Multiplies reflected and transmitted light (default 1).
         #[serde(default = "default_one")]
         tint: Texture,
+        /// Perceptual roughness `r` in [0, 1] (default 0, smooth glass): a Trowbridge–Reitz lobe of width
+        /// `α = r²` that reflects and refracts (Walter et al. 2007).
+        #[serde(default, skip_serializing_if = "is_zero")]
+        roughness: f32,
         /// Bump map (default none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         bump: Option<BumpMap>,
         /// Tangent-space normal map (default none).
         #[serde(default, skip_serializing_if = "Option::is_none")]
         normal_map: Option<NormalMap>,
+    },
+    /// A metal: Trowbridge–Reitz facets with a conductor's Fresnel reflectance.
+    Conductor {
+        /// Real part of the complex index of refraction per channel (with `k`; default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        eta: Option<Texture>,
+        /// Imaginary part of the complex index of refraction per channel (with `eta`; default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        k: Option<Texture>,
+        /// Reflectance at normal incidence with Schlick's Fresnel, glTF's metal (default 1 when neither `eta`
+        /// nor `color` is given).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        color: Option<Texture>,
+        /// Perceptual roughness `r` in [0, 1] (default 0.3); `α = r²`, and below `r ≈ 0.032` a perfect mirror.
+        #[serde(default = "default_conductor_roughness")]
+        roughness: f32,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
+        /// Whether the surface reflects on both sides (default true); a one-sided surface is black seen from
+        /// behind (the side its geometric normal points away from) and absorbs the light that arrives there.
+        #[serde(default = "default_true", skip_serializing_if = "is_true")]
+        two_sided: bool,
     },
     /// The original renderer's mixture of diffuse, mirror and glass; the rest of the weight is absorbed.
     Mix {
@@ -182,7 +239,8 @@ enum LobesBinary {
     Lambert(Texture),
     Phong(Texture, Texture, f32),
     Mirror(Texture),
-    Dielectric(f32, Texture),
+    Dielectric(f32, Texture, f32),
+    Conductor(Option<Texture>, Option<Texture>, Option<Texture>, f32),
     Mix(Texture, f32, f32, f32, f32),
     Interface,
 }
@@ -201,7 +259,8 @@ impl Serialize for Material {
             Material::Lambert { albedo, .. } => LobesBinary::Lambert(albedo),
             Material::Phong { diffuse, specular, exponent, .. } => LobesBinary::Phong(diffuse, specular, exponent),
             Material::Mirror { reflectance, .. } => LobesBinary::Mirror(reflectance),
-            Material::Dielectric { eta, tint, .. } => LobesBinary::Dielectric(eta, tint),
+            Material::Dielectric { eta, tint, roughness, .. } => LobesBinary::Dielectric(eta, tint, roughness),
+            Material::Conductor { eta, k, color, roughness, .. } => LobesBinary::Conductor(eta, k, color, roughness),
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 LobesBinary::Mix(color, diffuse, specular, transmission, eta)
             }
@@ -223,7 +282,12 @@ impl<'de> Deserialize<'de> for Material {
                 Material::Phong { diffuse, specular, exponent, bump, normal_map, two_sided }
             }
             LobesBinary::Mirror(reflectance) => Material::Mirror { reflectance, bump, normal_map, two_sided },
-            LobesBinary::Dielectric(eta, tint) => Material::Dielectric { eta, tint, bump, normal_map },
+            LobesBinary::Dielectric(eta, tint, roughness) => {
+                Material::Dielectric { eta, tint, roughness, bump, normal_map }
+            }
+            LobesBinary::Conductor(eta, k, color, roughness) => {
+                Material::Conductor { eta, k, color, roughness, bump, normal_map, two_sided }
+            }
             LobesBinary::Mix(color, diffuse, specular, transmission, eta) => {
                 Material::Mix { color, diffuse, specular, transmission, eta, bump, normal_map }
             }
@@ -242,6 +306,14 @@ fn default_true() -> bool {
 
 fn is_true(b: &bool) -> bool {
     *b
+}
+
+fn is_zero(x: &f32) -> bool {
+    *x == 0.0
+}
+
+fn default_conductor_roughness() -> f32 {
+    0.3
 }
 
 fn default_one() -> Texture {
@@ -322,9 +394,27 @@ impl Material {
                 Ok(())
             }
             Material::Mirror { reflectance, .. } => reflectance.validate_reflectance("reflectance"),
-            Material::Dielectric { eta, tint, .. } => {
+            Material::Dielectric { eta, tint, roughness, .. } => {
                 validate_eta(*eta)?;
+                validate_roughness(*roughness)?;
                 tint.validate_reflectance("tint")
+            }
+            Material::Conductor { eta, k, color, roughness, .. } => {
+                validate_roughness(*roughness)?;
+                match (eta, k, color) {
+                    (Some(eta), Some(k), None) => {
+                        validate_constant(eta, "eta", |c| c > 0.0, "a finite number > 0")?;
+                        validate_constant(k, "k", |c| c >= 0.0, "a finite number ≥ 0")
+                    }
+                    (None, None, Some(color)) => color.validate_reflectance("color"),
+                    (None, None, None) => Ok(()),
+                    (Some(_), None, _) => Err(FieldError::new("k", "eta needs k, the imaginary part of the index")),
+                    (None, Some(_), _) => Err(FieldError::new("eta", "k needs eta, the real part of the index")),
+                    (Some(_), Some(_), Some(_)) => Err(FieldError::new(
+                        "color",
+                        "a conductor takes a complex index (eta and k) or a color (Schlick's F0), not both",
+                    )),
+                }
             }
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 color.validate_reflectance("color")?;
@@ -356,6 +446,7 @@ impl Material {
             | Material::Phong { bump, .. }
             | Material::Mirror { bump, .. }
             | Material::Dielectric { bump, .. }
+            | Material::Conductor { bump, .. }
             | Material::Mix { bump, .. } => bump.as_ref(),
             Material::Interface {} => None,
         }
@@ -368,6 +459,7 @@ impl Material {
             | Material::Phong { normal_map, .. }
             | Material::Mirror { normal_map, .. }
             | Material::Dielectric { normal_map, .. }
+            | Material::Conductor { normal_map, .. }
             | Material::Mix { normal_map, .. } => normal_map.as_ref(),
             Material::Interface {} => None,
         }
@@ -380,6 +472,10 @@ impl Material {
             Material::Phong { diffuse, specular, .. } => vec![("diffuse", diffuse), ("specular", specular)],
             Material::Mirror { reflectance, .. } => vec![("reflectance", reflectance)],
             Material::Dielectric { tint, .. } => vec![("tint", tint)],
+            Material::Conductor { eta, k, color, .. } => [("eta", eta), ("k", k), ("color", color)]
+                .into_iter()
+                .filter_map(|(n, t)| Some((n, t.as_ref()?)))
+                .collect(),
             Material::Mix { color, .. } => vec![("color", color)],
             Material::Interface {} => Vec::new(),
         }
@@ -406,6 +502,10 @@ impl Material {
                 (vec![("reflectance", reflectance)], bump, normal_map)
             }
             Material::Dielectric { tint, bump, normal_map, .. } => (vec![("tint", tint)], bump, normal_map),
+            Material::Conductor { eta, k, color, bump, normal_map, .. } => {
+                let colors = [("eta", eta), ("k", k), ("color", color)];
+                (colors.into_iter().filter_map(|(n, t)| Some((n, t.as_mut()?))).collect(), bump, normal_map)
+            }
             Material::Mix { color, bump, normal_map, .. } => (vec![("color", color)], bump, normal_map),
             Material::Interface {} => return Vec::new(),
         };
@@ -452,7 +552,23 @@ impl Material {
                 Bxdf::Phong { kd, ks, exponent: *exponent }
             }
             Material::Mirror { reflectance, .. } => Bxdf::Mirror { r: eval(reflectance) },
-            Material::Dielectric { eta, tint, .. } => Bxdf::Dielectric { eta: *eta, tint: eval(tint) },
+            Material::Dielectric { eta, tint, roughness, .. } => {
+                let alpha = roughness * roughness;
+                if alpha < SMOOTH_ALPHA {
+                    Bxdf::Dielectric { eta: *eta, tint: eval(tint) }
+                } else {
+                    Bxdf::RoughDielectric { eta: *eta, tint: eval(tint), alpha }
+                }
+            }
+            Material::Conductor { eta, k, color, roughness, .. } => {
+                let fresnel = match (eta, k, color) {
+                    (Some(eta), Some(k), _) => ConductorFresnel::Complex { eta: eval(eta), k: eval(k) },
+                    (_, _, Some(color)) => ConductorFresnel::Schlick { f0: eval(color) },
+                    // Validation refuses half an index; a conductor with none is white.
+                    _ => ConductorFresnel::Schlick { f0: crate::Rgb::ONE },
+                };
+                Bxdf::Conductor { fresnel, alpha: roughness * roughness }
+            }
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => Bxdf::Mix {
                 color: eval(color),
                 diffuse: *diffuse,
@@ -473,7 +589,8 @@ impl Material {
         match self {
             Material::Lambert { two_sided, .. }
             | Material::Phong { two_sided, .. }
-            | Material::Mirror { two_sided, .. } => *two_sided,
+            | Material::Mirror { two_sided, .. }
+            | Material::Conductor { two_sided, .. } => *two_sided,
             Material::Dielectric { .. } | Material::Mix { .. } | Material::Interface {} => true,
         }
     }
@@ -483,7 +600,9 @@ impl Material {
     pub fn has_specular(&self) -> bool {
         match self {
             Material::Lambert { .. } | Material::Phong { .. } | Material::Interface {} => false,
-            Material::Mirror { .. } | Material::Dielectric { .. } => true,
+            // Rough conductors and glass too: the photon methods walk through their narrower lobes as through a
+            // mirror (`photons.min_roughness`), so light that reaches a diffuse surface through them is caustic.
+            Material::Mirror { .. } | Material::Dielectric { .. } | Material::Conductor { .. } => true,
             Material::Mix { specular, transmission, .. } => *specular > 0.0 || *transmission > 0.0,
         }
     }
@@ -499,7 +618,10 @@ impl Material {
     pub fn has_non_delta(&self) -> bool {
         match self {
             Material::Lambert { .. } | Material::Phong { .. } => true,
-            Material::Mirror { .. } | Material::Dielectric { .. } | Material::Interface {} => false,
+            Material::Dielectric { roughness, .. } | Material::Conductor { roughness, .. } => {
+                roughness * roughness >= SMOOTH_ALPHA
+            }
+            Material::Mirror { .. } | Material::Interface {} => false,
             Material::Mix { diffuse, .. } => *diffuse > 0.0,
         }
     }
@@ -507,10 +629,32 @@ impl Material {
     /// Whether light can pass through the surface (glass, or a mix with transmission).
     pub fn is_transmissive(&self) -> bool {
         match self {
-            Material::Lambert { .. } | Material::Phong { .. } | Material::Mirror { .. } => false,
+            Material::Lambert { .. }
+            | Material::Phong { .. }
+            | Material::Mirror { .. }
+            | Material::Conductor { .. } => false,
             Material::Dielectric { .. } | Material::Interface {} => true,
             Material::Mix { transmission, .. } => *transmission > 0.0,
         }
+    }
+}
+
+fn validate_roughness(r: f32) -> Result<(), FieldError> {
+    if r.is_finite() && (0.0..=1.0).contains(&r) {
+        Ok(())
+    } else {
+        Err(FieldError::new("roughness", format!("expected a number from 0 to 1, got {r}")))
+    }
+}
+
+/// Checks that `t` is a constant (one number or `[r, g, b]`) whose every channel is finite and passes `ok`.
+fn validate_constant(t: &Texture, field: &str, ok: impl Fn(f32) -> bool, expected: &str) -> Result<(), FieldError> {
+    let Texture::Constant(c) = t else {
+        return Err(FieldError::new(field, format!("expected {expected} or [r, g, b] of them, not a texture")));
+    };
+    match c.to_array().into_iter().find(|&x| !(x.is_finite() && ok(x))) {
+        Some(x) => Err(FieldError::new(field, format!("expected {expected} in every channel, got {x}"))),
+        None => Ok(()),
     }
 }
 
@@ -550,7 +694,7 @@ mod tests {
             .map(|l| format!("{}\n", l.trim_start_matches("//!").trim_start()))
             .collect();
         let m = parse(&snippet).unwrap();
-        assert_eq!(m.len(), 6);
+        assert_eq!(m.len(), 9);
         assert_eq!(m["boundary"], Material::Interface {});
         for mat in m.values() {
             mat.validate().unwrap();
@@ -566,7 +710,7 @@ mod tests {
         );
         assert_eq!(
             m["glass"],
-            Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), bump: None, normal_map: None }
+            Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), roughness: 0.0, bump: None, normal_map: None }
         );
     }
 
@@ -593,7 +737,10 @@ mod tests {
             m["c"],
             Material::Mirror { reflectance: Texture::grey(1.0), bump: None, normal_map: None, two_sided: true }
         );
-        assert_eq!(m["d"], Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), bump: None, normal_map: None });
+        assert_eq!(
+            m["d"],
+            Material::Dielectric { eta: 1.5, tint: Texture::grey(1.0), roughness: 0.0, bump: None, normal_map: None }
+        );
         assert_eq!(
             m["e"],
             Material::Mix {
@@ -734,7 +881,13 @@ mod tests {
             // One-sided: the binary form carries the flag.
             phong(false),
             Material::Mirror { reflectance: 0.9.into(), bump: None, normal_map: None, two_sided: true },
-            Material::Dielectric { eta: 1.33, tint: [1.0, 0.9, 0.8].into(), bump: None, normal_map: None },
+            Material::Dielectric {
+                eta: 1.33,
+                tint: [1.0, 0.9, 0.8].into(),
+                roughness: 0.0,
+                bump: None,
+                normal_map: None,
+            },
             mix(),
             // The binary form carries an image's slot, not its file name.
             textured("", 3),
@@ -785,8 +938,17 @@ mod tests {
                 Material::Mirror { reflectance: (-0.1).into(), bump: None, normal_map: None, two_sided: true },
                 "reflectance",
             ),
-            (Material::Dielectric { eta: 0.0, tint: 1.0.into(), bump: None, normal_map: None }, "eta"),
-            (Material::Dielectric { eta: 1.5, tint: f32::INFINITY.into(), bump: None, normal_map: None }, "tint"),
+            (Material::Dielectric { eta: 0.0, tint: 1.0.into(), roughness: 0.0, bump: None, normal_map: None }, "eta"),
+            (
+                Material::Dielectric {
+                    eta: 1.5,
+                    tint: f32::INFINITY.into(),
+                    roughness: 0.0,
+                    bump: None,
+                    normal_map: None,
+                },
+                "tint",
+            ),
             (
                 Material::Mix {
                     color: 0.5.into(),
@@ -828,25 +990,30 @@ mod tests {
         ok.validate().unwrap();
     }
 
-    #[test]
-    fn bsdf_evaluates_textures_and_keeps_both_normals() {
+    /// A hit at the origin of the plane z = 0, normals +z, tangents along x and y.
+    fn plane_hit() -> Hit {
         use crate::geometry::{NONE, PrimRef};
-        use crate::material::bsdf::TransportMode;
-        let ns = fmath::normalize(Vec3A::new(0.1, 0.0, 1.0));
-        let hit = Hit {
+        Hit {
             t: 1.0,
-            p: Vec3A::new(1.0, 2.0, 3.0),
+            p: Vec3A::ZERO,
             p_error: Vec3A::ZERO,
             n: Vec3A::Z,
-            ns,
-            uv: Vec2::new(0.25, 0.5),
+            ns: Vec3A::Z,
+            uv: Vec2::ZERO,
             dpdu: Vec3A::X,
             dpdv: Vec3A::Y,
             material: 0,
             light: NONE,
             object: 0,
             prim: PrimRef::Plane(0),
-        };
+        }
+    }
+
+    #[test]
+    fn bsdf_evaluates_textures_and_keeps_both_normals() {
+        use crate::material::bsdf::TransportMode;
+        let ns = fmath::normalize(Vec3A::new(0.1, 0.0, 1.0));
+        let hit = Hit { p: Vec3A::new(1.0, 2.0, 3.0), ns, uv: Vec2::new(0.25, 0.5), ..plane_hit() };
         let b =
             Material::Lambert { albedo: Texture::from([0.1, 0.2, 0.3]), bump: None, normal_map: None, two_sided: true }
                 .bsdf(&hit, &[]);
@@ -854,7 +1021,7 @@ mod tests {
         assert_eq!((b.frame.n, b.ng), (ns, Vec3A::Z));
         // Glass seen from below the geometric normal is seen from inside: leaving into air refracts away from
         // the normal, so a ray at 30° inside leaves at asin(1.5·sin 30°) ≈ 48.6°.
-        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into(), bump: None, normal_map: None }
+        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into(), roughness: 0.0, bump: None, normal_map: None }
             .bsdf(&Hit { ns: Vec3A::Z, ..hit }, &[]);
         let wo = -Vec3A::new(0.5, 0.0, 0.75f32.sqrt());
         let s = glass.sample(wo, 0.999, Vec2::ZERO, TransportMode::Importance).unwrap();
@@ -863,7 +1030,7 @@ mod tests {
 
     #[test]
     fn component_queries() {
-        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into(), bump: None, normal_map: None };
+        let glass = Material::Dielectric { eta: 1.5, tint: 1.0.into(), roughness: 0.0, bump: None, normal_map: None };
         assert!(glass.has_specular() && !glass.has_non_delta() && glass.is_transmissive());
         let lambert = Material::default();
         assert!(!lambert.has_specular() && lambert.has_non_delta() && !lambert.is_transmissive());
@@ -877,5 +1044,53 @@ mod tests {
             normal_map: None,
         };
         assert!(mix.has_specular() && mix.has_non_delta() && !mix.is_transmissive());
+    }
+
+    /// Roughness 0 is the existing delta mirror and glass: the same samples, no non-delta lobe; a rough one is a
+    /// microfacet lobe that the photon methods store photons on only from `min_roughness` on.
+    #[test]
+    fn roughness_zero_falls_back_to_the_delta_lobes() {
+        use crate::material::bsdf::TransportMode;
+        let hit = plane_hit();
+        let m = parse(
+            r#"
+            [materials.smooth_glass]
+            type = "dielectric"
+            eta = 1.5
+            [materials.rough_glass]
+            type = "dielectric"
+            eta = 1.5
+            roughness = 0.5
+            [materials.smooth_metal]
+            type = "conductor"
+            color = [0.9, 0.6, 0.3]
+            roughness = 0.0
+            [materials.metal]
+            type = "conductor"
+            eta = [0.2, 0.4, 1.4]
+            k = [4.0, 2.4, 1.6]
+            "#,
+        )
+        .unwrap();
+        let (smooth_glass, rough_glass) = (m["smooth_glass"].bsdf(&hit, &[]), m["rough_glass"].bsdf(&hit, &[]));
+        assert_eq!(smooth_glass.bxdf, Bxdf::Dielectric { eta: 1.5, tint: Rgb::ONE });
+        assert_eq!(rough_glass.bxdf, Bxdf::RoughDielectric { eta: 1.5, tint: Rgb::ONE, alpha: 0.25 });
+        let wo = fmath::normalize(Vec3A::new(0.3, 0.2, 0.9));
+        let mirror = Material::Mirror { reflectance: 1.0.into(), bump: None, normal_map: None, two_sided: true };
+        let (smooth_metal, mirror) = (m["smooth_metal"].bsdf(&hit, &[]), mirror.bsdf(&hit, &[]));
+        assert!(smooth_metal.is_delta() && !m["smooth_metal"].has_non_delta());
+        let s = smooth_metal.sample(wo, 0.5, Vec2::splat(0.5), TransportMode::Radiance).unwrap();
+        let r = mirror.sample(wo, 0.5, Vec2::splat(0.5), TransportMode::Radiance).unwrap();
+        assert!(s.delta && s.wi == r.wi && s.pdf == r.pdf, "{s:?} vs {r:?}");
+        // The mirror's f is its reflectance over |cos θi|; the metal's carries Schlick's F at the view angle.
+        let schlick = Rgb::new(0.9, 0.6, 0.3) + (Rgb::ONE - Rgb::new(0.9, 0.6, 0.3)) * (1.0 - wo.z).powi(5);
+        assert!((s.f - r.f * schlick).abs().max_element() < 1e-5, "{} vs {}", s.f, r.f * schlick);
+        // The default roughness 0.3 is just rough enough for photons at the default threshold 0.3.
+        let metal = m["metal"].bsdf(&hit, &[]);
+        assert!(metal.has_non_delta() && metal.stores_photons(0.3) && !metal.stores_photons(0.31));
+        assert!(!rough_glass.stores_photons(0.0), "transmitting glass stores no photons");
+        assert!(!smooth_metal.stores_photons(0.0));
+        assert!(parse("[materials.a]\ntype = \"conductor\"\neta = 0.2\n").unwrap()["a"].validate().is_err());
+        assert!(parse("[materials.a]\ntype = \"dielectric\"\nroughness = 1.5\n").unwrap()["a"].validate().is_err());
     }
 }

@@ -232,7 +232,8 @@ pub fn trace_path(
             // The back of a one-sided surface absorbs the photon; it is not stored.
             return;
         }
-        if bsdf.has_non_delta() && keeps(kind, specular_only, depth) {
+        let stores = bsdf.stores_photons(prep.settings.photons.min_roughness);
+        if stores && keeps(kind, specular_only, depth) {
             // Store the normal on the side the photon arrived from, and the flux as the shading normal sees it
             // (`Bsdf::arrival_correction`), so that density estimates match the path tracer on smooth-shaded
             // surfaces.
@@ -246,7 +247,9 @@ pub fn trace_path(
         if !survives(&mut power, w, &mut tracer.sampler) {
             return;
         }
-        specular_only &= bs.delta;
+        // A bounce off a lobe too glossy to store photons is specular for the maps: the light it sends to a
+        // diffuse surface is a caustic, and the camera paths walk through it to find it there.
+        specular_only &= bs.delta || !stores;
         if kind == PhotonKind::Caustic && !specular_only {
             // Past a diffuse bounce no photon of this path can be a caustic one.
             return;

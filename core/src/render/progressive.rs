@@ -24,7 +24,7 @@ use super::samples::{camera_sample, for_each_pixel};
 use super::sums::{BlockSums, add_fixed, finite_or_zero};
 use crate::Rgb;
 use crate::integrator::volume::{Strategy, in_scattering, segment_point};
-use crate::integrator::{Segment, sample_one_light, visible_point, visible_point_in};
+use crate::integrator::{Segment, photon_vertex_direct, visible_point, visible_point_in};
 use crate::math::Ray;
 use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux, volume_radiance};
 use crate::prepare::Prepared;
@@ -203,7 +203,7 @@ fn pixel_estimate(
         }
     };
     let Some((beta, hit, bsdf, wo)) = vp.vertex else { return finite_or_zero(vp.le) + finite_or_zero(vp.volume) };
-    let ld = vp.le + beta * sample_one_light(tracer, &hit, &bsdf, wo, vp.medium, false);
+    let ld = vp.le + beta * photon_vertex_direct(tracer, &hit, &bsdf, wo, vp.medium);
     let ld = finite_or_zero(ld) + finite_or_zero(vp.volume);
     let Some(map) = map else { return finite_or_zero(ld) };
     let (phi, m) = photon_flux(map, est, &hit, &bsdf, wo);

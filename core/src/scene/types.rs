@@ -135,6 +135,18 @@ pub struct PhotonSettings {
     /// Progressive radius reduction α in (0, 1); default 2/3.
     #[serde(default = "default_alpha")]
     pub alpha: f32,
+    /// The smoothest surface, as a perceptual roughness in [0, 1], on which the photon methods (`photon-map`,
+    /// `final-gather`, `progressive`) store photons and estimate density; default 0.3. On a glossier lobe
+    /// (a conductor or a Phong lobe without diffuse part whose width, as a Trowbridge–Reitz `α`, is below
+    /// `min_roughness²`) a density estimate needs too many photons, so camera paths walk on through it by
+    /// sampling it, as through a mirror, and photons that leave through it are caustic ones. Transmitting
+    /// rough glass never stores photons. `vcm` merges at every non-delta vertex: its MIS weighs merging there.
+    #[serde(default = "default_min_roughness")]
+    pub min_roughness: f32,
+}
+
+fn default_min_roughness() -> f32 {
+    0.3
 }
 
 impl Default for PhotonSettings {
@@ -154,6 +166,7 @@ impl Default for PhotonSettings {
             passes: default_passes(),
             pass_photons: default_pass_photons(),
             alpha: default_alpha(),
+            min_roughness: default_min_roughness(),
         }
     }
 }

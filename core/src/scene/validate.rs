@@ -229,6 +229,12 @@ impl RenderSettings {
         if !(ph.alpha > 0.0 && ph.alpha < 1.0) {
             return Err(FieldError::new(pf("alpha"), format!("expected a number in (0, 1), found {}", ph.alpha)));
         }
+        if !(0.0..=1.0).contains(&ph.min_roughness) {
+            return Err(FieldError::new(
+                pf("min_roughness"),
+                format!("expected a roughness in [0, 1], found {}", ph.min_roughness),
+            ));
+        }
         for (name, v) in
             [("passes", ph.passes), ("pass_photons", ph.pass_photons), ("final_gather_rays", ph.final_gather_rays)]
         {

@@ -5,6 +5,7 @@
 use glam::Vec3A;
 use photon_core::Rgb;
 use photon_core::material::bsdf::{Bsdf, Bxdf};
+use photon_core::material::microfacet::ConductorFresnel;
 use photon_core::math::fmath;
 use photon_core::math::rng::{Domain, Sampler};
 
@@ -35,15 +36,40 @@ pub fn every_kind() -> Vec<(&'static str, Bxdf)> {
         ("glass 2.4", Bxdf::Dielectric { eta: 2.4, tint: Rgb::ONE }),
         ("mix", Bxdf::Mix { color: Rgb::new(0.8, 0.4, 0.2), diffuse: 0.3, specular: 0.2, transmission: 0.4, eta: 1.5 }),
         ("mix diffuse+glass", Bxdf::Mix { color: Rgb::ONE, diffuse: 0.5, specular: 0.0, transmission: 0.5, eta: 1.33 }),
+        ("gold r=0.3", Bxdf::Conductor { fresnel: gold(), alpha: 0.09 }),
+        ("schlick metal r=0.7", Bxdf::Conductor { fresnel: schlick(), alpha: 0.49 }),
+        ("smooth metal", Bxdf::Conductor { fresnel: schlick(), alpha: 0.0 }),
+        ("rough glass r=0.3", Bxdf::RoughDielectric { eta: 1.5, tint: Rgb::new(1.0, 0.9, 0.7), alpha: 0.09 }),
+        ("rough glass 2.4 r=0.8", Bxdf::RoughDielectric { eta: 2.4, tint: Rgb::ONE, alpha: 0.64 }),
     ]
+}
+
+/// About gold's complex index of refraction, its measured spectrum reduced to three channels (red, green, blue).
+pub fn gold() -> ConductorFresnel {
+    ConductorFresnel::Complex { eta: Rgb::new(0.143, 0.374, 1.442), k: Rgb::new(3.983, 2.385, 1.603) }
+}
+
+/// glTF's metal: Schlick's Fresnel with a coloured reflectance at normal incidence.
+pub fn schlick() -> ConductorFresnel {
+    ConductorFresnel::Schlick { f0: Rgb::new(0.95, 0.64, 0.54) }
+}
+
+/// Whether a BxDF is a microfacet lobe, whose single-scattering albedo loses energy and whose value is a longer
+/// chain of f32 operations than the other lobes'.
+pub fn is_microfacet(b: &Bxdf) -> bool {
+    match *b {
+        Bxdf::Conductor { alpha, .. } => alpha > 0.0,
+        Bxdf::RoughDielectric { .. } => true,
+        _ => false,
+    }
 }
 
 /// Whether a BxDF lets light through the surface.
 pub fn transmits(b: &Bxdf) -> bool {
     match *b {
-        Bxdf::Dielectric { .. } => true,
+        Bxdf::Dielectric { .. } | Bxdf::RoughDielectric { .. } => true,
         Bxdf::Mix { transmission, .. } => transmission > 0.0,
-        Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::Mirror { .. } => false,
+        Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::Mirror { .. } | Bxdf::Conductor { .. } => false,
     }
 }
 
