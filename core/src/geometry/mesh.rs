@@ -1,4 +1,6 @@
-//! Wavefront OBJ meshes, read with `tobj`.
+//! Wavefront OBJ meshes, read with `tobj`, and what every mesh format loads to ([`MeshData`], [`MeshError`],
+//! [`Normals`]); PLY files are read by [`crate::geometry::ply`], and [`crate::geometry::mesh_file`] picks the reader
+//! by the file's extension.
 //!
 //! ```toml
 //! [[objects]]
@@ -41,6 +43,23 @@ pub enum MeshError {
         line: Option<usize>,
         /// What is wrong.
         message: String,
+    },
+    /// The file is not a valid PLY, or not a mesh (no faces, no positions).
+    #[error("{file}{}: malformed PLY: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+    MalformedPly {
+        /// The mesh file.
+        file: PathBuf,
+        /// The offending line (1-based) of the header or of an ASCII body; `None` in a binary body, where the
+        /// message names the element instead.
+        line: Option<usize>,
+        /// What is wrong, and where in the body: the element and its index (from 0, as faces count vertices).
+        message: String,
+    },
+    /// The file name ends in neither `.obj` nor `.ply`, so its format is not known.
+    #[error("{file}: unknown mesh format: the file name must end in `.obj` (Wavefront OBJ) or `.ply` (PLY)")]
+    UnknownFormat {
+        /// The mesh file.
+        file: PathBuf,
     },
 }
 
