@@ -9,6 +9,7 @@
 use glam::{Affine3A, Vec3};
 use photon_core::geometry::mesh::{MeshData, MeshError, Normals, load_obj};
 use photon_core::geometry::mesh_file::load_mesh;
+use photon_core::geometry::ply::parse_ply;
 use photon_core::prepare::Prepared;
 use photon_core::prepare::lod::{MeshLod, plan};
 use photon_core::render::render_image;
@@ -236,62 +237,23 @@ fn every_encoding_loads_to_the_bits_of_the_obj() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A lit floor under `file`: a checker texture that reads the mesh's UVs, under an area light, through the path
-/// tracer, from a camera far enough that level of detail simplifies the mesh (its bound comes from the file's
-/// vertices).
-fn scene(file: &str) -> String {
-    format!(
-        r#"[camera]
-eye = [0.0, 1.0, 9.0]
-look_at = [0.0, 0.6, 0.0]
-fov = 14.0
-width = 24
-height = 20
-
-[render]
-integrator = "path"
-spp = 4
-max_depth = 4
-
-[materials.checker]
-type = "lambert"
-albedo = {{ checker = [[0.8, 0.3, 0.1], [0.1, 0.3, 0.8]], scale = 8 }}
-
-[materials.white]
-type = "lambert"
-albedo = 0.7
-
-[[objects]]
-type = "plane"
-point = [0.0, 0.0, 0.0]
-normal = [0.0, 1.0, 0.0]
-material = "white"
-
-[[objects]]
-type = "rect"
-center = [0.0, 2.5, 0.0]
-normal = [0.0, -1.0, 0.0]
-tangent = [1.0, 0.0, 0.0]
-width = 1.0
-height = 1.0
-material = "white"
-emission = {{ radiance = [12.0, 12.0, 12.0] }}
-
-[[objects]]
-type = "mesh"
-file = "{file}"
-material = "checker"
-transform = {{ translate = [0.0, 0.6, 0.0], rotate = [70.0, 20.0, 0.0] }}
-"#
-    )
+/// The shipped PLY scene with its two tori read from `file`, at 24×24 pixels and 4 spp: small enough that level of
+/// detail simplifies both (their bounds come from the file's vertices).
+fn scene(dir: &Path, file: &str) -> PathBuf {
+    let shipped = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/ply-mesh.toml");
+    let text = std::fs::read_to_string(shipped).unwrap();
+    assert_eq!(text.matches("\"meshes/torus.ply\"").count(), 2);
+    let path = dir.join(format!("{file}.toml"));
+    std::fs::write(&path, text.replace("meshes/torus.ply", file)).unwrap();
+    path
 }
 
-/// The scene's level-of-detail plan for its mesh, and the bits of its image.
-fn render(path: &Path) -> (Option<MeshLod>, Vec<u32>) {
-    let s = Scene::load(path).unwrap();
-    let lod = plan(&s)[2].clone();
+/// The scene's level-of-detail plan, and the bits of its image.
+fn render(path: &Path) -> (Vec<Option<MeshLod>>, Vec<u32>) {
+    let mut s = Scene::load(path).unwrap();
+    (s.camera.width, s.camera.height, s.render.spp) = (24, 24, 4);
     let prep = Prepared::new(&s, path).unwrap();
-    (lod, render_image(&prep, &|_| {}).pixels.iter().map(|v| v.to_bits()).collect())
+    (plan(&s), render_image(&prep, &|_| {}).pixels.iter().map(|v| v.to_bits()).collect())
 }
 
 #[test]
@@ -300,31 +262,24 @@ fn a_ply_and_the_obj_it_came_from_render_the_same_bytes() {
     let obj = std::fs::read_to_string(meshes().join("torus.obj")).unwrap();
     std::fs::write(dir.join("torus.obj"), &obj).unwrap();
     std::fs::write(dir.join("torus.PLY"), to_ply(&from_obj(&obj), Encoding::Little)).unwrap();
-    for file in ["torus.obj", "torus.PLY"] {
-        std::fs::write(dir.join(format!("{file}.toml")), scene(file)).unwrap();
-    }
-    let (lod, from_obj) = render(&dir.join("torus.obj.toml"));
-    let (ply_lod, from_ply) = render(&dir.join("torus.PLY.toml"));
+    let (lod, from_obj) = render(&scene(&dir, "torus.obj"));
+    let (ply_lod, from_ply) = render(&scene(&dir, "torus.PLY"));
     // The level of detail reads the PLY's bounds as the OBJ's, and simplifies both alike.
-    assert!(matches!(lod, Some(MeshLod::Simplify { .. })), "{lod:?}");
+    assert_eq!(lod.iter().filter(|l| matches!(l, Some(MeshLod::Simplify { .. }))).count(), 2, "{lod:?}");
     assert_eq!(ply_lod, lod);
     assert!(from_obj == from_ply, "the PLY renders other pixels than the OBJ");
-    // Not black: the checker's two colours are both seen.
     let lit = from_obj.chunks(3).filter(|p| p.iter().any(|&b| f32::from_bits(b) > 0.0)).count();
     assert!(lit > from_obj.len() / 6, "{lit} lit pixels");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A one-triangle PLY header of the given format line and vertex properties, then the body.
-fn triangle(format: &str, properties: &str, body: &str) -> Vec<u8> {
+/// A one-triangle PLY of the given format line (positions as `float`), then the body.
+fn triangle(format: &str, body: &str) -> String {
     format!(
-        "ply\n{format}\nelement vertex 3\n{properties}element face 1\nproperty list uchar int vertex_indices\n\
-         end_header\n{body}"
+        "ply\n{format}\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\n\
+         property list uchar int vertex_indices\nend_header\n{body}"
     )
-    .into_bytes()
 }
-
-const XYZ: &str = "property float x\nproperty float y\nproperty float z\n";
 
 fn load(dir: &Path, name: &str, bytes: &[u8]) -> Result<MeshData, MeshError> {
     let path = dir.join(name);
@@ -346,123 +301,91 @@ fn binary_triangle() -> Vec<u8> {
 #[test]
 fn every_malformed_ply_names_its_file_and_what_was_expected() {
     let dir = temp_dir("errors");
-    let ascii = "format ascii 1.0";
-    let good = "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
-    assert_eq!(load(&dir, "good.ply", &triangle(ascii, XYZ, good)).unwrap().triangles.len(), 1);
-    let binary_header = String::from_utf8(triangle("format binary_little_endian 1.0", XYZ, "")).unwrap();
-    let binary = |body: &[u8]| [binary_header.as_bytes(), body].concat();
-    assert_eq!(load(&dir, "good-binary.ply", &binary(&binary_triangle())).unwrap().triangles.len(), 1);
+    // The header is lines 1 to 9, the vertices lines 10 to 12, the face line 13.
+    let good = triangle("format ascii 1.0", "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n");
+    assert_eq!(load(&dir, "good.ply", good.as_bytes()).unwrap().triangles.len(), 1);
+    let binary = |body: &[u8]| [triangle("format binary_little_endian 1.0", "").as_bytes(), body].concat();
     let whole = binary_triangle();
-    // (file name, bytes, where: `name:line` or `name`, words the message must hold)
-    let cases: Vec<(&str, Vec<u8>, &str, &str)> = vec![
+    assert_eq!(load(&dir, "good-binary.ply", &binary(&whole)).unwrap().triangles.len(), 1);
+    // The good ASCII triangle with `from` replaced by `to`.
+    let edit = |from: &str, to: &str| good.replacen(from, to, 1).into_bytes();
+    let no_face_element = edit("element face 1\nproperty list uchar int vertex_indices\n", "");
+    // (file name, its bytes, the line its message names, words the message must hold)
+    let cases: Vec<(&str, Vec<u8>, Option<usize>, &str)> = vec![
         (
             "format.ply",
-            triangle("format binary_middle_endian 1.0", XYZ, good),
-            "format.ply:2: ",
-            "unknown format `format binary_middle_endian 1.0`: expected `format ascii 1.0`",
+            edit("ascii", "binary_middle_endian"),
+            Some(2),
+            "unknown format `format binary_middle_endian 1.0`",
         ),
-        ("not-ply.ply", b"v 0 0 0\nv 1 0 0\n".to_vec(), "not-ply.ply:1: ", "not a PLY file"),
-        (
-            "no-y.ply",
-            triangle(ascii, "property float x\nproperty float z\n", "0 0\n1 0\n0 1\n3 0 1 2\n"),
-            "no-y.ply: ",
-            "the `vertex` element has no `y` property",
-        ),
-        (
-            "index.ply",
-            triangle(ascii, XYZ, "0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n"),
-            "index.ply:13: ",
-            "`face` 0: vertex index 3 is out of range (0 to 2)",
-        ),
-        (
-            "negative.ply",
-            triangle(ascii, XYZ, "0 0 0\n1 0 0\n0 1 0\n3 0 -1 2\n"),
-            "negative.ply:13: ",
-            "vertex index -1 is out of range",
-        ),
-        (
-            "truncated.ply",
-            binary(&whole[..whole.len() - 3]),
-            "truncated.ply: ",
-            "the file ends inside `face` 0 of 1 (a truncated binary body)",
-        ),
-        (
-            "truncated-vertex.ply",
-            binary(&whole[..20]),
-            "truncated-vertex.ply: ",
-            "the file ends inside `vertex` 1 of 3",
-        ),
-        (
-            "line.ply",
-            triangle(ascii, XYZ, "0 0 0\n1 0 0\n0 1 0\n2 0 1\n"),
-            "line.ply:13: ",
-            "`face` 0: a face needs at least three vertices, found 2",
-        ),
-        (
-            "nan.ply",
-            triangle(ascii, XYZ, "0 0 0\n1 1e99 0\n0 1 0\n3 0 1 2\n"),
-            "nan.ply:11: ",
-            "`vertex` 1: its position [1.0, inf, 0.0] is not finite",
-        ),
-        (
-            "no-faces.ply",
-            b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n\
-              end_header\n0 0 0\n"
-                .to_vec(),
-            "no-faces.ply: ",
-            "no faces",
-        ),
-        (
-            "empty-faces.ply",
-            triangle(ascii, XYZ, "0 0 0\n1 0 0\n0 1 0\n").replace_count("element face 1", "element face 0"),
-            "empty-faces.ply: ",
-            "no faces",
-        ),
-        (
-            "short-row.ply",
-            triangle(ascii, XYZ, "0 0 0\n1 0\n0 1 0\n3 0 1 2\n"),
-            "short-row.ply:11: ",
-            "`vertex` 1: `1 0`",
-        ),
-        ("empty.ply", Vec::new(), "empty.ply: ", "header"),
+        ("not-ply.ply", b"v 0 0 0\nv 1 0 0\n".to_vec(), Some(1), "not a PLY file"),
+        ("no-y.ply", edit("property float y\n", ""), None, "the `vertex` element has no `y` property"),
+        ("index.ply", edit("3 0 1 2", "3 0 1 3"), Some(13), "`face` 0: vertex index 3 is out of range (0 to 2)"),
+        ("negative.ply", edit("3 0 1 2", "3 0 -1 2"), Some(13), "vertex index -1 is out of range"),
+        ("line.ply", edit("3 0 1 2", "2 0 1"), Some(13), "`face` 0: a face needs at least three vertices, found 2"),
+        ("nan.ply", edit("1 0 0\n", "1 1e99 0\n"), Some(11), "`vertex` 1: its position [1.0, inf, 0.0] is not finite"),
+        ("short-row.ply", edit("1 0 0\n", "1 0\n"), Some(11), "`vertex` 1: `1 0`"),
+        ("no-faces.ply", edit("element face 1", "element face 0"), None, "no faces"),
+        ("no-face-element.ply", no_face_element, None, "no faces"),
+        ("truncated.ply", binary(&whole[..whole.len() - 3]), None, "the file ends inside `face` 0 of 1 (a truncated"),
+        ("truncated-vertex.ply", binary(&whole[..20]), None, "the file ends inside `vertex` 1 of 3"),
+        ("empty.ply", Vec::new(), None, "header"),
     ];
-    for (name, bytes, place, expected) in &cases {
+    for (name, bytes, line, expected) in &cases {
         let e = load(&dir, name, bytes).unwrap_err();
         let message = e.to_string();
         assert!(matches!(e, MeshError::MalformedPly { .. }), "{name}: {e:?}");
-        let tail = message.strip_prefix(&format!("{}/{place}", dir.display()));
+        let place = line.map_or(format!("{name}: "), |l| format!("{name}:{l}: "));
+        let tail = message.strip_prefix(&format!("{}/{place}malformed PLY: ", dir.display()));
         assert!(tail.is_some_and(|t| t.contains(expected)), "{name}: `{message}` lacks `{place}…{expected}`");
         assert!(message.len() < 600, "{name}: {} bytes", message.len());
     }
     // The size limit holds for PLY as for OBJ.
     let path = dir.join("big.ply");
-    std::fs::write(&path, triangle(ascii, XYZ, good)).unwrap();
+    std::fs::write(&path, &good).unwrap();
     let e = load_mesh(&path, &Affine3A::IDENTITY, Normals::default(), 100).unwrap_err().to_string();
     assert!(e.contains("big.ply") && e.contains("limits.mesh_mib"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// `str::replace` for the bytes of a PLY that is ASCII throughout.
-trait ReplaceCount {
-    fn replace_count(self, from: &str, to: &str) -> Vec<u8>;
-}
-
-impl ReplaceCount for Vec<u8> {
-    fn replace_count(self, from: &str, to: &str) -> Vec<u8> {
-        String::from_utf8(self).unwrap().replace(from, to).into_bytes()
+/// Every prefix of the shipped binary torus, the same file with any one header byte changed, and headers that
+/// promise billions of rows: each loads or fails with a [`MeshError`], never a panic, and quickly.
+#[test]
+fn no_cut_or_corrupted_ply_panics() {
+    let file = Path::new("torus.ply");
+    let bytes = std::fs::read(meshes().join("torus.ply")).unwrap();
+    let parse = |b: &[u8]| parse_ply(b, file, &Affine3A::IDENTITY, Normals::default());
+    assert_eq!(parse(&bytes).unwrap().triangles.len(), 2 * 24 * 12);
+    let t0 = std::time::Instant::now();
+    let body = bytes.windows(11).position(|w| w == b"end_header\n").unwrap() + 11;
+    for cut in (0..body).chain((body..bytes.len()).step_by(7)) {
+        assert!(parse(&bytes[..cut]).is_err(), "{cut} of {} bytes loaded", bytes.len());
     }
+    for at in 0..body {
+        for b in [b'0', b'9', b' ', b'\n', 0xFF] {
+            let mut changed = bytes.clone();
+            changed[at] = b;
+            let _ = parse(&changed);
+        }
+    }
+    let huge = String::from_utf8_lossy(&bytes[..body]).replace("element vertex 325", "element vertex 4000000000");
+    let e = parse(&[huge.as_bytes(), &bytes[body..]].concat()).unwrap_err().to_string();
+    assert!(e.contains("the file ends inside `vertex`"), "{e}");
+    let empty_rows =
+        triangle("format binary_little_endian 1.0", "").replace("end_header", "element nothing 4000000000\nend_header");
+    assert!(parse(&[empty_rows.as_bytes(), &binary_triangle()].concat()).is_ok());
+    assert!(t0.elapsed() < std::time::Duration::from_secs(20), "{:?}", t0.elapsed());
 }
 
 #[test]
 fn a_mesh_file_of_another_extension_is_refused_with_its_field() {
     let dir = temp_dir("extension");
     std::fs::write(dir.join("torus.stl"), b"solid torus\nendsolid torus\n").unwrap();
-    let path = dir.join("stl.toml");
-    std::fs::write(&path, scene("torus.stl")).unwrap();
+    let path = scene(&dir, "torus.stl");
     let s = Scene::load(&path).unwrap();
     let e = Prepared::new(&s, &path).unwrap_err().to_string();
     assert!(
-        e.contains("objects[2].file")
+        e.contains("objects[6].file")
             && e.contains("torus.stl: unknown mesh format")
             && e.contains("`.obj`")
             && e.contains("`.ply`"),

@@ -23,7 +23,7 @@
 
 use crate::geometry::MeshShading;
 use crate::geometry::mesh::{MeshData, MeshError, Normals};
-use crate::geometry::mesh::{push_crease_normals, read_mesh, triangulate, warn_if_not_plain, winding, world_normals};
+use crate::geometry::mesh::{push_crease_normals, triangulate, warn_if_not_plain, winding, world_normals};
 use crate::input::excerpt;
 use crate::math::Aabb;
 use glam::{Affine3A, Vec3};
@@ -38,17 +38,8 @@ const UV_NAMES: [[&str; 2]; 3] = [["u", "v"], ["s", "t"], ["texture_u", "texture
 /// The names of the face element's vertex-index list, in the order looked for.
 const INDEX_NAMES: [&str; 2] = ["vertex_indices", "vertex_index"];
 
-/// Loads a PLY file of at most `limit` bytes and places it in the world with `world_from_object`.
-pub fn load_ply(
-    file: &Path,
-    world_from_object: &Affine3A,
-    normals: Normals,
-    limit: u64,
-) -> Result<MeshData, MeshError> {
-    parse_ply(&read_mesh(file, limit)?, file, world_from_object, normals)
-}
-
-/// Parses the bytes of a PLY file; `file` names it in errors and warnings.
+/// Parses the bytes of a PLY file and places its mesh in the world with `world_from_object`; `file` names it in
+/// errors and warnings. [`crate::geometry::mesh_file::load_mesh`] reads the file.
 pub fn parse_ply(
     bytes: &[u8],
     file: &Path,
