@@ -1,4 +1,6 @@
-//! Wavefront OBJ meshes, read with `tobj`.
+//! Wavefront OBJ meshes, read with `tobj`, and what every mesh format loads to ([`MeshData`], [`MeshError`],
+//! [`Normals`]); PLY files are read by [`crate::geometry::ply`], and [`crate::geometry::mesh_file`] picks the reader
+//! by the file's extension.
 //!
 //! ```toml
 //! [[objects]]
@@ -41,6 +43,23 @@ pub enum MeshError {
         line: Option<usize>,
         /// What is wrong.
         message: String,
+    },
+    /// The file is not a valid PLY, or not a mesh (no faces, no positions).
+    #[error("{file}{}: malformed PLY: {message}", line.map(|l| format!(":{l}")).unwrap_or_default())]
+    MalformedPly {
+        /// The mesh file.
+        file: PathBuf,
+        /// The offending line (1-based) of the header or of an ASCII body; `None` in a binary body, where the
+        /// message names the element instead.
+        line: Option<usize>,
+        /// What is wrong, and where in the body: the element and its index (from 0, as faces count vertices).
+        message: String,
+    },
+    /// The file name ends in neither `.obj` nor `.ply`, so its format is not known.
+    #[error("{file}: unknown mesh format: the file name must end in `.obj` (Wavefront OBJ) or `.ply` (PLY)")]
+    UnknownFormat {
+        /// The mesh file.
+        file: PathBuf,
     },
 }
 
@@ -85,11 +104,25 @@ pub fn load_obj(
     normals: Normals,
     limit: u64,
 ) -> Result<MeshData, MeshError> {
-    let bytes = crate::input::read_regular(file, limit, "limits.mesh_mib in the scene")
-        .map_err(|source| MeshError::Io { file: file.into(), source })?;
+    parse_obj_bytes(&read_mesh(file, limit)?, file, world_from_object, normals)
+}
+
+/// The bytes of the mesh file `file`: a regular file of at most `limit` bytes (`[limits] mesh_mib`).
+pub(crate) fn read_mesh(file: &Path, limit: u64) -> Result<Vec<u8>, MeshError> {
+    crate::input::read_regular(file, limit, "limits.mesh_mib in the scene")
+        .map_err(|source| MeshError::Io { file: file.into(), source })
+}
+
+/// Parses the bytes of an OBJ file; `file` names it in errors and warnings.
+pub(crate) fn parse_obj_bytes(
+    bytes: &[u8],
+    file: &Path,
+    world_from_object: &Affine3A,
+    normals: Normals,
+) -> Result<MeshData, MeshError> {
     // Lossy: a byte that is not UTF-8 sits in a comment or a name, both unused; in a number it fails that
     // line's check below, with its line.
-    parse_obj(&String::from_utf8_lossy(&bytes), file, world_from_object, normals)
+    parse_obj(&String::from_utf8_lossy(bytes), file, world_from_object, normals)
 }
 
 /// Parses OBJ text; `file` names it in errors and warnings.
@@ -125,7 +158,6 @@ pub fn parse_obj(
         .map(|(i, _)| i + 1)
         .collect();
     let mut face_number = 0usize;
-    let normal_from_object = world_from_object.matrix3.inverse().transpose();
     let mut out = MeshData::default();
     let sh = &mut out.shading;
     for model in &models {
@@ -138,9 +170,7 @@ pub fn parse_obj(
         let world: Vec<Vec3> = positions.iter().map(|&p| world_from_object.transform_point3(p)).collect();
         // Each triangle as three positions in `m.indices` (which also index the normal and UV indices).
         let tris = model_triangles(m, &positions, file, &face_lines, &mut face_number)?;
-        // A mirroring transform (negative determinant) reverses the winding; swapping two corners keeps the
-        // outside outside (it decides the normals computed below, and which way emission faces).
-        let order: [usize; 3] = if world_from_object.matrix3.determinant() < 0.0 { [0, 2, 1] } else { [0, 1, 2] };
+        let order = winding(world_from_object);
         let tris: Vec<[usize; 3]> = tris.iter().map(|t| order.map(|k| t[k])).collect();
         for t in &tris {
             out.triangles.push(t.map(|c| world[m.indices[c] as usize]));
@@ -150,23 +180,15 @@ pub fn parse_obj(
         match normals {
             Normals::Flat => {}
             Normals::Smooth { .. } if !m.normals.is_empty() && m.normal_indices.len() == m.indices.len() => {
-                for n in m.normals.chunks_exact(3) {
-                    let wn = (normal_from_object * Vec3A::new(n[0], n[1], n[2])).normalize_or_zero();
-                    sh.normals.push(wn.to_array());
-                }
+                let file_normals = m.normals.chunks_exact(3).map(|n| Vec3::new(n[0], n[1], n[2]));
+                sh.normals.extend(world_normals(file_normals, world_from_object));
                 for t in &tris {
                     sh.normal_indices.push(t.map(|c| normal_base + m.normal_indices[c]));
                 }
             }
             Normals::Smooth { crease_angle } => {
-                let faces = &out.triangles[base_pos..];
                 let corner_positions: Vec<[u32; 3]> = tris.iter().map(|t| t.map(|c| m.indices[c])).collect();
-                let computed = crease_normals(faces, &corner_positions, world.len(), crease_angle);
-                for (f, corner_normals) in computed.iter().enumerate() {
-                    sh.normals.extend(corner_normals.iter().map(|n| n.to_array()));
-                    let first = normal_base + 3 * f as u32;
-                    sh.normal_indices.push([first, first + 1, first + 2]);
-                }
+                push_crease_normals(sh, &out.triangles[base_pos..], &corner_positions, world.len(), crease_angle);
             }
         }
         if !m.texcoords.is_empty() && m.texcoord_indices.len() == m.indices.len() {
@@ -218,26 +240,64 @@ fn model_triangles(
             polygon.push(*p);
         }
         let clipped = triangulate(&polygon);
-        if clipped.non_planarity > NON_PLANAR_TOLERANCE {
-            tracing::warn!(
-                "{}:{}: non-planar polygon of {arity} vertices (a vertex is {:.1e} of the polygon's size off its \
-                 plane): its triangles follow the ear clipping in its mean plane",
-                file.display(),
-                line.unwrap_or(0),
-                clipped.non_planarity
-            );
-        }
-        if !clipped.simple {
-            tracing::warn!(
-                "{}:{}: polygon of {arity} vertices is not simple (it self-intersects or is degenerate): part of \
-                 it is triangulated as a fan",
-                file.display(),
-                line.unwrap_or(0)
-            );
-        }
+        warn_if_not_plain(&clipped, arity, || format!("{}:{}", file.display(), line.unwrap_or(0)));
         tris.extend(clipped.triangles.iter().map(|t| t.map(|k| corners.start + k)));
     }
     Ok(tris)
+}
+
+/// Warns, naming the polygon with `place` (`file:line`, or `file: face N`), when its triangulation `clipped` had to
+/// flatten a non-planar polygon of `arity` vertices or fan a polygon that is not simple.
+pub(crate) fn warn_if_not_plain(clipped: &Triangulation, arity: usize, place: impl Fn() -> String) {
+    if clipped.non_planarity > NON_PLANAR_TOLERANCE {
+        tracing::warn!(
+            "{}: non-planar polygon of {arity} vertices (a vertex is {:.1e} of the polygon's size off its plane): \
+             its triangles follow the ear clipping in its mean plane",
+            place(),
+            clipped.non_planarity
+        );
+    }
+    if !clipped.simple {
+        tracing::warn!(
+            "{}: polygon of {arity} vertices is not simple (it self-intersects or is degenerate): part of it is \
+             triangulated as a fan",
+            place()
+        );
+    }
+}
+
+/// The corner order that keeps a face's outside outside under `world_from_object`: a mirroring transform
+/// (negative determinant) reverses the winding, and swapping two corners restores it (the winding decides the
+/// computed normals, and which way emission faces).
+pub(crate) fn winding(world_from_object: &Affine3A) -> [usize; 3] {
+    if world_from_object.matrix3.determinant() < 0.0 { [0, 2, 1] } else { [0, 1, 2] }
+}
+
+/// A file's object-space normals as world-space unit normals (by the inverse transpose of the transform; a zero
+/// normal stays zero).
+pub(crate) fn world_normals(
+    normals: impl Iterator<Item = Vec3>,
+    world_from_object: &Affine3A,
+) -> impl Iterator<Item = [f32; 3]> {
+    let normal_from_object = world_from_object.matrix3.inverse().transpose();
+    normals.map(move |n| (normal_from_object * Vec3A::from(n)).normalize_or_zero().to_array())
+}
+
+/// Appends to `sh` the smooth normals of [`crease_normals`], three per face of `faces` (one per corner), with
+/// their indices.
+pub(crate) fn push_crease_normals(
+    sh: &mut MeshShading,
+    faces: &[[Vec3; 3]],
+    corners: &[[u32; 3]],
+    positions: usize,
+    crease_angle: f32,
+) {
+    let base = sh.normals.len() as u32;
+    for (f, corner_normals) in crease_normals(faces, corners, positions, crease_angle).iter().enumerate() {
+        sh.normals.extend(corner_normals.iter().map(|n| n.to_array()));
+        let first = base + 3 * f as u32;
+        sh.normal_indices.push([first, first + 1, first + 2]);
+    }
 }
 
 /// Smooth normals at the corners of `faces` (world space; `corners` gives each corner's position index, of

@@ -7,6 +7,8 @@
 pub mod bvh;
 pub mod lod;
 pub mod mesh;
+pub mod mesh_file;
+pub mod ply;
 pub mod shapes;
 
 use crate::math::{Aabb, Ray, offset_ray_origin_by_error};

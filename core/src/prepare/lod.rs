@@ -74,7 +74,7 @@ pub fn view(scene: &Scene) -> View {
 
 /// The level of detail of every object of a validated `scene`, in object order: `None` for an object that is
 /// not a mesh. Reads each mesh file (at most `[limits] mesh_mib`) for the bounding box of its vertices after its
-/// transform ([`crate::geometry::lod::obj_bounds`]); the same scene and files give the same plan.
+/// transform ([`crate::geometry::mesh_file::mesh_bounds`]); the same scene and files give the same plan.
 pub fn plan(scene: &Scene) -> Vec<Option<MeshLod>> {
     let specular = scene.materials.iter().find(|(_, m)| Material::has_specular(m)).map(|(name, _)| name.clone());
     let view = view(scene);
@@ -98,10 +98,9 @@ pub fn plan(scene: &Scene) -> Vec<Option<MeshLod>> {
                 return full(Full::Specular(m.clone()));
             }
             let path = scene.base_dir.join(file);
-            let Ok(bytes) = crate::input::read_regular(&path, limit, "limits.mesh_mib in the scene") else {
+            let Ok(bounds) = crate::geometry::mesh_file::mesh_bounds(&path, &transform.matrix(), limit) else {
                 return full(Full::Unreadable);
             };
-            let bounds = crate::geometry::lod::obj_bounds(&String::from_utf8_lossy(&bytes), &transform.matrix());
             match view.error_bound(bounds, *lod) {
                 Some(bound) => Some(MeshLod::Simplify { bound }),
                 None => full(Full::NearCamera),

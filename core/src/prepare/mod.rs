@@ -343,14 +343,15 @@ fn mesh_object(
     let path = scene.base_dir.join(file);
     let normals = if *smooth { Normals::Smooth { crease_angle: *crease_angle } } else { Normals::Flat };
     let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
-    let mesh = crate::geometry::mesh::load_obj(&path, &transform.matrix(), normals, limit)
+    let mesh = crate::geometry::mesh_file::load_mesh(&path, &transform.matrix(), normals, limit)
         .map_err(|source| SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source })?;
     if mesh.shading.uv_indices.is_empty()
         && let Some(m) = scene.materials.get(o.material())
         && m.needs_uv()
     {
         let message = format!(
-            "{} has no texture coordinates (`vt` lines), which material `{}` needs for its textures",
+            "{} has no texture coordinates (an OBJ's `vt` lines, a PLY's `u`/`v` properties), which material `{}` \
+             needs for its textures",
             path.display(),
             o.material()
         );
