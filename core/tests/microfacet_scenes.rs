@@ -4,7 +4,8 @@
 //!   roughness 0.15, where the photon methods walk through both);
 //! - the same furnace with a metal rough enough to hold photons: final-gather and progressive agree with the
 //!   path tracer within 2 %;
-//! - on Mitsuba's sphere room with a rough metal and a rough glass sphere in place of the mirror and the glass,
+//! - on `scenes/rough-spheres.toml`, Mitsuba's sphere room with a rough metal and a rough glass sphere in place
+//!   of the mirror and the glass,
 //!   the image means of the other methods agree with the path tracer's: bdpt and vcm within 0.5 %, the photon
 //!   methods (biased by their radius) within 1 % (progressive) and 2 % (photon-map, final-gather).
 
@@ -143,23 +144,11 @@ fn photon_methods_store_on_a_rough_enough_metal_and_agree_with_the_path_tracer()
     }
 }
 
-/// Mitsuba's sphere room with its mirror sphere a rough copper-coloured metal (rough enough to hold photons)
-/// and its glass sphere rough glass.
-fn rough_room() -> (Scene, std::path::PathBuf) {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/rooms/cornell-spheres.toml");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let metal = "[materials.mirror]\ntype = \"conductor\"\ncolor = [0.95, 0.64, 0.54]\nroughness = 0.35\n";
-    let glass = "[materials.glass]\ntype = \"dielectric\"\neta = 1.5\nroughness = 0.2\n";
-    let text = text
-        .replace("[materials.mirror]\ntype = \"mirror\"\nreflectance = [1.0, 1.0, 1.0]\n", metal)
-        .replace("[materials.glass]\ntype = \"dielectric\"\neta = 1.5\n", glass);
-    assert!(text.contains("roughness = 0.35") && text.contains("roughness = 0.2"), "the room's materials moved");
-    (Scene::parse(&text, &path).unwrap(), path)
-}
-
 #[test]
 fn means_agree_with_the_path_tracer_on_a_room_of_rough_metal_and_glass() {
-    let (scene, path) = rough_room();
+    // Mitsuba's sphere room with a rough metal (0.35, rough enough to hold photons) and rough glass (0.2).
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes/rough-spheres.toml");
+    let scene = Scene::load(&path).unwrap();
     let reference = mean(&render(&scene, &path, Method::Path, 32, 4096));
     for (integrator, budget, tolerance) in [
         (Method::Bdpt, 1024, 0.005),

@@ -87,8 +87,10 @@ impl PreparedCache {
         for o in &scene.objects {
             if let Object::Mesh { file, .. } = o {
                 let path = scene.base_dir.join(file);
-                // A file that cannot be read is left to the loader, which reports it with the scene's context.
-                let bytes = std::fs::read(&path).unwrap_or_default();
+                // A file that cannot be read (or is not a regular file, or is over the limit: `/dev/zero` would
+                // never end) is left to the loader, which reports it with the scene's context.
+                let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
+                let bytes = photon_core::input::read_regular(&path, limit, "limits.mesh_mib").unwrap_or_default();
                 h.update(path.to_string_lossy().as_bytes());
                 h.update(&(bytes.len() as u64).to_le_bytes());
                 h.update(&bytes);
@@ -111,8 +113,9 @@ impl PreparedCache {
         h.update(&enc("settings", photon_core::codec::encode(&settings))?);
         // Photons bounce off textured surfaces: their images' bytes decide the maps (not the scene blob, which
         // names images by slot).
+        let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
         for (path, _) in photon_core::prepare::textures::files(scene) {
-            let bytes = std::fs::read(&path).unwrap_or_default();
+            let bytes = photon_core::input::read_regular(&path, limit, "limits.texture_mib").unwrap_or_default();
             h.update(path.to_string_lossy().as_bytes());
             h.update(&(bytes.len() as u64).to_le_bytes());
             h.update(&bytes);

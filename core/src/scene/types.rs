@@ -408,7 +408,7 @@ pub enum Object {
     },
     /// A Wavefront OBJ mesh.
     Mesh {
-        /// Path of the .obj file, relative to the scene file.
+        /// Path of the mesh file (`.obj` or `.ply`), relative to the scene file.
         file: PathBuf,
         /// Placement in the world.
         #[serde(default)]
