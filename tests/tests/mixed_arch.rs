@@ -121,7 +121,7 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
     let big = dir.join("big-mesh.toml");
     std::fs::write(&big, scene).unwrap();
     let big = big.to_string_lossy().into_owned();
-    let jobs: [(&str, &[&str]); 11] = [
+    let jobs: [(&str, &[&str]); 14] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
@@ -138,6 +138,14 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
         ("fog.toml", &["--size", "32x32", "--spp", "2", "--integrator", "path"]),
         ("fog.toml", &["--size", "32x32", "--integrator", "progressive", "--passes", "2", "--photons", "20000"]),
         ("volume-caustic.toml", &["--size", "32x24", "--spp", "1", "--integrator", "photon-map", "--photons", "20000"]),
+        // Rough metal and glass: visible-normal sampling, masking, Fresnel terms and their MIS with the lights;
+        // photons stored on the metal and walked through the glass.
+        ("rough-spheres.toml", &["--size", "32x32", "--spp", "2", "--integrator", "path"]),
+        ("rough-spheres.toml", &["--size", "32x32", "--integrator", "vcm", "--passes", "2"]),
+        (
+            "rough-spheres.toml",
+            &["--size", "32x32", "--integrator", "progressive", "--passes", "2", "--photons", "20000"],
+        ),
     ];
     for (scene, job) in jobs {
         let (a, b) = (dir.join("x86.exr"), dir.join("arm.exr"));
