@@ -84,12 +84,12 @@ impl PreparedCache {
         h.update(&enc("materials", photon_core::codec::encode(&scene.materials))?);
         h.update(&enc("objects", photon_core::codec::encode(&scene.objects))?);
         h.update(&enc("lights", photon_core::codec::encode(&scene.lights))?);
+        // A file that cannot be read (or is not a regular file, or is over the limit: `/dev/zero` would never
+        // end) is left to the loader, which reports it with the scene's context.
+        let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
         for o in &scene.objects {
             if let Object::Mesh { file, .. } = o {
                 let path = scene.base_dir.join(file);
-                // A file that cannot be read (or is not a regular file, or is over the limit: `/dev/zero` would
-                // never end) is left to the loader, which reports it with the scene's context.
-                let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
                 let bytes = photon_core::input::read_regular(&path, limit, "limits.mesh_mib").unwrap_or_default();
                 h.update(path.to_string_lossy().as_bytes());
                 h.update(&(bytes.len() as u64).to_le_bytes());

@@ -74,11 +74,11 @@ pub fn sample_one_light(
     }
 }
 
-/// Direct light at the vertex where `final-gather` and `progressive` estimate density: light sampling alone ([`sample_one_light`] without MIS) at a surface
-/// whose lobes are diffuse, and at a glossy one (a metal rough enough to hold photons, a Phong lobe without
-/// diffuse part; [`crate::material::bsdf::Bxdf::photon_alpha`] finite) one light sample and one BSDF sample
-/// joined by the power heuristic (Veach 1997, §9.2): there light sampling alone sends rare, bright samples into
-/// the narrow lobe. The BSDF sample counts only the emission it hits first; light that reaches it through
+/// Direct light at the vertex where `final-gather` and `progressive` estimate density: light sampling alone
+/// ([`sample_one_light`] without MIS) at a surface whose lobes are diffuse, and at a glossy one (a metal rough
+/// enough to hold photons, a Phong lobe without diffuse part; [`crate::material::bsdf::Bxdf::photon_alpha`]
+/// finite) one light sample and one BSDF sample joined by the power heuristic (Veach 1997, §9.2): there light
+/// sampling alone sends rare, bright samples into the narrow lobe. The BSDF sample counts only the emission it hits first; light that reaches it through
 /// mirror or glass is the caustic estimate's. In a scene with media, light sampling alone everywhere.
 pub fn photon_vertex_direct(tracer: &mut Tracer, hit: &Hit, bsdf: &Bsdf, wo: Vec3A, medium: Option<Medium>) -> Rgb {
     let prep = tracer.prep;

@@ -173,14 +173,15 @@ impl Bsdf {
     }
 
     /// The BSDF of the non-delta lobes for the pair (`wo`, `wi`), without the cosine factor. Zero for mirrors
-    /// and glass, and whenever `wo` and `wi` are not on the same side of the geometric normal; their sides of
-    /// the shading normal do not matter (the black-fringe rule, see the module docs).
+    /// and smooth glass, and, except for rough glass (which refracts), whenever `wo` and `wi` are not on the same
+    /// side of the geometric normal; their sides of the shading normal do not matter (the black-fringe rule, see
+    /// the module docs).
     pub fn f(&self, wo: Vec3A, wi: Vec3A, mode: TransportMode) -> Rgb {
         if self.black_from(wo) {
             return Rgb::ZERO;
         }
-        let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
         if let Bxdf::RoughDielectric { eta, tint, alpha } = self.bxdf {
+            let (wo_l, wi_l) = (self.frame.to_local(wo), self.frame.to_local(wi));
             if !self.crosses_consistently(wo, wi, wo_l, wi_l) {
                 return Rgb::ZERO;
             }
@@ -191,7 +192,7 @@ impl Bsdf {
         if wo.dot(self.ng) * wi.dot(self.ng) <= 0.0 {
             return Rgb::ZERO;
         }
-        self.f_local(wo_l, wi_l)
+        self.f_local(self.frame.to_local(wo), self.frame.to_local(wi))
     }
 
     /// Whether a pair of a lobe that both reflects and transmits is on sides that agree: a reflection about the
@@ -408,9 +409,10 @@ impl Bsdf {
     /// paths walk on through the surface as through a mirror.
     #[inline]
     pub fn stores_photons(&self, min_roughness: f32) -> bool {
-        // A transmitting lobe (α 0) never stores photons, even at `min_roughness` 0.
+        // `photon_alpha` is 0 without a non-delta lobe and for a transmitting one, which never stores photons,
+        // even at `min_roughness` 0.
         let alpha = self.bxdf.photon_alpha();
-        self.has_non_delta() && alpha > 0.0 && alpha >= min_roughness * min_roughness
+        alpha > 0.0 && alpha >= min_roughness * min_roughness
     }
 
     /// The non-delta part in the local frame, for directions on the same geometric side (checked by the

@@ -460,12 +460,7 @@ mod tests {
             for cos_o in [1.0f32, 0.5, 0.1] {
                 let wo = Vec3A::new((1.0 - cos_o * cos_o).sqrt(), 0.0, cos_o);
                 let quadrature = integrate_lobes(wo, 1.0, |wi| conductor_f(&dist, &white, wo, wi).x * wi.z.abs());
-                let n = 200_000;
-                let sampled: f64 = (0..n)
-                    .filter_map(|_| conductor_sample(&dist, &white, wo, rng.next_2d()))
-                    .map(|s| f64::from(s.f.x * s.wi.z / s.pdf))
-                    .sum::<f64>()
-                    / n as f64;
+                let sampled = sampled_albedo(|| conductor_sample(&dist, &white, wo, rng.next_2d()));
                 assert!(quadrature <= 1.0 + 3e-3, "r = {r}, cos θo = {cos_o}: albedo {quadrature} > 1");
                 assert!((sampled - quadrature).abs() < 0.01, "r = {r}: sampled {sampled} vs {quadrature}");
                 row.push(quadrature);
@@ -476,6 +471,12 @@ mod tests {
             }
             println!("furnace r = {r:4}: {:.4} {:.4} {:.4}", row[0], row[1], row[2]);
         }
+    }
+
+    /// The mean of `f·|cos θi|/pdf` over 200 000 draws of `draw` (a `None` counts 0): the sampled albedo.
+    fn sampled_albedo(mut draw: impl FnMut() -> Option<LocalSample>) -> f64 {
+        let n = 200_000;
+        (0..n).filter_map(|_| draw()).map(|s| f64::from(s.f.x * s.wi.z.abs() / s.pdf)).sum::<f64>() / n as f64
     }
 
     /// The rough dielectric conserves flux: reflected plus transmitted importance-mode albedo is at most 1, and
@@ -490,12 +491,8 @@ mod tests {
             for (cos_o, side) in [(0.9f32, 1.0f32), (0.4, 1.0), (0.9, -1.0), (0.4, -1.0)] {
                 let wo = Vec3A::new((1.0 - cos_o * cos_o).sqrt(), 0.0, side * cos_o);
                 let quadrature = integrate_lobes(wo, 1.5, |wi| dielectric_f(&dist, 1.5, wo, wi, false) * wi.z.abs());
-                let n = 200_000;
-                let sampled: f64 = (0..n)
-                    .filter_map(|_| dielectric_sample(&dist, 1.5, wo, rng.next_f32(), rng.next_2d(), false))
-                    .map(|s| f64::from(s.f.x * s.wi.z.abs() / s.pdf))
-                    .sum::<f64>()
-                    / n as f64;
+                let sampled =
+                    sampled_albedo(|| dielectric_sample(&dist, 1.5, wo, rng.next_f32(), rng.next_2d(), false));
                 assert!(quadrature <= 1.0 + 5e-3, "r = {r}, {wo}: albedo {quadrature} > 1");
                 assert!((sampled - quadrature).abs() < 0.015, "r = {r}, {wo}: sampled {sampled} vs {quadrature}");
                 row.push(quadrature);

@@ -401,20 +401,7 @@ impl Material {
             }
             Material::Conductor { eta, k, color, roughness, .. } => {
                 validate_roughness(*roughness)?;
-                match (eta, k, color) {
-                    (Some(eta), Some(k), None) => {
-                        validate_constant(eta, "eta", |c| c > 0.0, "a finite number > 0")?;
-                        validate_constant(k, "k", |c| c >= 0.0, "a finite number ≥ 0")
-                    }
-                    (None, None, Some(color)) => color.validate_reflectance("color"),
-                    (None, None, None) => Ok(()),
-                    (Some(_), None, _) => Err(FieldError::new("k", "eta needs k, the imaginary part of the index")),
-                    (None, Some(_), _) => Err(FieldError::new("eta", "k needs eta, the real part of the index")),
-                    (Some(_), Some(_), Some(_)) => Err(FieldError::new(
-                        "color",
-                        "a conductor takes a complex index (eta and k) or a color (Schlick's F0), not both",
-                    )),
-                }
+                validate_conductor_fresnel(eta.as_ref(), k.as_ref(), color.as_ref())
             }
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 color.validate_reflectance("color")?;
@@ -636,6 +623,28 @@ impl Material {
             Material::Dielectric { .. } | Material::Interface {} => true,
             Material::Mix { transmission, .. } => *transmission > 0.0,
         }
+    }
+}
+
+/// A conductor's Fresnel inputs: a complex index (`eta` > 0 and `k` ≥ 0, constants), or a `color`, or neither.
+fn validate_conductor_fresnel(
+    eta: Option<&Texture>,
+    k: Option<&Texture>,
+    color: Option<&Texture>,
+) -> Result<(), FieldError> {
+    match (eta, k, color) {
+        (Some(eta), Some(k), None) => {
+            validate_constant(eta, "eta", |c| c > 0.0, "a finite number > 0")?;
+            validate_constant(k, "k", |c| c >= 0.0, "a finite number ≥ 0")
+        }
+        (None, None, Some(color)) => color.validate_reflectance("color"),
+        (None, None, None) => Ok(()),
+        (Some(_), None, _) => Err(FieldError::new("k", "eta needs k, the imaginary part of the index")),
+        (None, Some(_), _) => Err(FieldError::new("eta", "k needs eta, the real part of the index")),
+        (Some(_), Some(_), Some(_)) => Err(FieldError::new(
+            "color",
+            "a conductor takes a complex index (eta and k) or a color (Schlick's F0), not both",
+        )),
     }
 }
 

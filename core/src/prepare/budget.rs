@@ -37,7 +37,8 @@ pub fn passes_at_once(pass_photons: u32, threads: usize) -> u32 {
 }
 
 /// Bytes of one stored light-subpath vertex of vcm and bdpt (a point and its error bound, the BSDF there, the
-/// direction, the throughput and the MIS quantities: 240 bytes, since a conductor's BSDF carries a complex index per channel).
+/// direction, the throughput and the MIS quantities: 240 bytes, since a conductor's BSDF carries a complex
+/// index per channel).
 pub const LIGHT_VERTEX_BYTES: u64 = 240;
 
 /// Bytes of one light-tracing contribution of vcm, bdpt and lt (a pixel index and a colour, aligned: 32 bytes).
