@@ -5,7 +5,9 @@
 //!
 //! Slots follow the materials in name order and, within a material, its colours in declaration order, then
 //! its bump or normal map; a file read twice (the same path) has one slot. The order depends only on the scene
-//! text, so a scene blob from the cache and freshly decoded images always agree.
+//! text, so a scene blob from the cache and freshly decoded images always agree. The images of glTF objects
+//! ([`super::gltf`]) follow, object by object, in the order their materials read them, after the scene's own
+//! materials and then each glTF object's materials.
 
 use crate::material::Material;
 use crate::material::texture::{TexelImage, decode_file};
@@ -34,6 +36,36 @@ pub fn files(scene: &Scene) -> Vec<(PathBuf, String)> {
 /// decoded, is empty, has a side of 0 or over [`crate::material::texture::MAX_TEXTURE_SIDE`], or decodes to
 /// more than `limits.texture_mib`; float texels that are negative or not finite.
 pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
+    load_with(scene, scene_path, &mut super::gltf::import_all(scene, scene_path)?)
+}
+
+/// [`load`] with the scene's glTF objects already imported: their materials follow the scene's, their image
+/// slots moved past the images before them, and their images (taken out of `imported`) follow the scene's.
+///
+/// # Errors
+/// As [`load`].
+pub fn load_with(
+    scene: &Scene,
+    scene_path: &Path,
+    imported: &mut [Option<super::gltf::Imported>],
+) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
+    let (mut materials, mut images) = load_scene_images(scene, scene_path)?;
+    for imp in imported.iter_mut().flatten() {
+        let offset = images.len() as u32;
+        for m in &imp.materials {
+            let mut m = m.clone();
+            for (_, r) in m.images_mut() {
+                r.slot = r.slot.saturating_add(offset);
+            }
+            materials.push(m);
+        }
+        images.append(&mut imp.images);
+    }
+    Ok((materials, images))
+}
+
+/// The scene's own materials (name order) with their slots set, and their images.
+fn load_scene_images(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
     let files = files(scene);
     let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
     let mut images = Vec::with_capacity(files.len());

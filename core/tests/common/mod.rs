@@ -257,3 +257,4 @@ pub fn integrate_sphere(
 pub fn integrate_whole_sphere(n: usize, g: impl Fn(Vec3A) -> Rgb) -> [f64; 3] {
     integrate_sphere((0.0, std::f64::consts::PI), (0.0, std::f64::consts::TAU), (2 * n, 2 * n), g)
 }
+pub mod gltf;
