@@ -42,7 +42,46 @@ pub const SUPPORTED_EXTENSIONS: [&str; 4] =
 /// Reads and parses a glTF or GLB file of at most `limit` bytes (buffers and images each within it too).
 fn read(file: &Path, limit: u64) -> Result<gltf::Gltf, MeshError> {
     let bytes = crate::geometry::mesh::read_mesh(file, limit)?;
-    gltf::Gltf::from_slice(&bytes).map_err(|e| malformed(file, describe(&e)))
+    // gltf-json 1.4's validator indexes the accessors of a primitive's attributes before checking the index
+    // (it panics in `mesh.rs`): those are checked first, and any other panic of the validator is a malformed
+    // file too, not a crash.
+    if let Ok(unchecked) = gltf::Gltf::from_slice_without_validation(&bytes)
+        && let Some(why) = dangling_accessor(unchecked.document.as_json())
+    {
+        return Err(malformed(file, format!("invalid glTF: {why}")));
+    }
+    let parsed = std::panic::catch_unwind(|| gltf::Gltf::from_slice(&bytes)).map_err(|panic| {
+        let why = panic
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| panic.downcast_ref::<&str>().copied())
+            .unwrap_or("a panic");
+        malformed(file, format!("invalid glTF: an index is out of range ({why}, in the gltf crate's validator)"))
+    })?;
+    parsed.map_err(|e| malformed(file, describe(&e)))
+}
+
+/// The first primitive attribute or index list that names an accessor past the accessor list.
+fn dangling_accessor(root: &gltf::json::Root) -> Option<String> {
+    let n = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let at = format!("meshes[{m}].primitives[{p}]");
+            let attributes = prim.attributes.iter().map(|(s, a)| {
+                let name = match s {
+                    gltf::json::validation::Checked::Valid(s) => s.to_string(),
+                    gltf::json::validation::Checked::Invalid => "(unknown)".to_string(),
+                };
+                (format!("attributes.{name}"), a.value())
+            });
+            for (field, a) in attributes.chain(prim.indices.iter().map(|i| ("indices".to_string(), i.value()))) {
+                if a >= n {
+                    return Some(format!("{at}.{field}: accessors[{a}] does not exist (the file has {n})"));
+                }
+            }
+        }
+    }
+    None
 }
 
 /// The `gltf` crate's error in words that say what was expected.
