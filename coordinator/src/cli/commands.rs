@@ -17,6 +17,8 @@ use photon_core::image_io::{Format, Image};
 use photon_core::method::Method;
 use photon_core::metrics::{self, Metrics};
 use photon_core::prepare::Prepared;
+// A scene file, or a glTF rendered directly.
+use photon_core::prepare::gltf::direct::load_scene;
 use photon_core::scene::Scene;
 use std::path::Path;
 use std::sync::Arc;
@@ -305,7 +307,7 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
 
 /// The scene of `render`: the file, its `--set` pairs, then the flags that override settings as more pairs.
 fn render_scene(args: &RenderArgs) -> Result<Scene> {
-    Ok(Scene::load_with(&args.scene, &overrides::pairs(&args.set, &args.settings()?))?)
+    Ok(load_scene(&args.scene, &overrides::pairs(&args.set, &args.settings()?))?)
 }
 
 /// A render stopped by a signal: the error `main` reports, with the exit status it ends with.
@@ -408,7 +410,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         bail!("--spp and --passes must be at least 1");
     }
     let size: Vec<Setting> = args.size.map(|(w, h)| Setting::Size(w, h)).into_iter().collect();
-    let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &size))?;
+    let scene = load_scene(&args.scene, &overrides::pairs(&args.set, &size))?;
     if args.seed == scene.render.seed {
         eprintln!("warning: the reference seed equals the scene's render.seed: its noise will correlate with renders");
     }
@@ -416,7 +418,7 @@ fn reference(args: ReferenceArgs) -> Result<()> {
     let choice = measure::choose_reference(&Prepared::new(&scene, &args.scene)?);
     let budget = if choice.integrator.renders_passes() { Setting::Passes(args.passes) } else { Setting::Spp(args.spp) };
     let settings = [size.as_slice(), &[Setting::Integrator(choice.integrator), Setting::Seed(args.seed), budget]];
-    let scene = Scene::load_with(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
+    let scene = load_scene(&args.scene, &overrides::pairs(&args.set, &settings.concat()))?;
     let (w, h) = (scene.camera.width, scene.camera.height);
     let units = scene.render.units();
     let budget =

@@ -3,7 +3,7 @@
 //!
 //! Two keys, so that changing only what photons depend on keeps the geometry:
 //! - the **scene key** hashes the build id, the scene's materials, objects and lights as parsed (after `--set`),
-//!   and the path and bytes of every file they reference (meshes);
+//!   and the path and bytes of every file they reference (meshes; glTF files with their buffers and images);
 //! - the **photons key** hashes the scene key, the render settings except those that cannot change a photon
 //!   (samples per pixel, exposure), and the path and bytes of every texture image (photons bounce off textured
 //!   surfaces; the scene blob names images by slot, so it does not depend on them).
@@ -95,6 +95,14 @@ impl PreparedCache {
                 h.update(&(bytes.len() as u64).to_le_bytes());
                 h.update(&bytes);
             }
+        }
+        // glTF objects: the file and the buffers and images beside it (its embedded images too: the scene key
+        // covers the photons key).
+        for path in photon_core::prepare::gltf::files(scene) {
+            let bytes = photon_core::input::read_regular(&path, limit, "limits.mesh_mib").unwrap_or_default();
+            h.update(path.to_string_lossy().as_bytes());
+            h.update(&(bytes.len() as u64).to_le_bytes());
+            h.update(&bytes);
         }
         // The level of detail of each mesh: kept whole (0), or simplified with this bound (its bits).
         for lod in photon_core::prepare::lod::plan(scene) {

@@ -68,6 +68,10 @@
 //!   metal); with neither it is white. `roughness` (default 0.3, from 0 to 1), `α = r²`; below `r ≈ 0.032` a
 //!   perfect mirror with that Fresnel reflectance. Single scattering: a rough metal loses the light its facets
 //!   shadow (under 1 % to `r = 0.2`, a third at `r = 1` and normal incidence; docs/RESULTS.md).
+//! - `metallic_roughness`: glTF 2.0's metallic–roughness model ([`metallic_roughness`]), what glTF materials
+//!   become. `base_color` (default 1), `metallic` and `roughness` in [0, 1] (default 1 each, glTF's defaults),
+//!   `metallic_roughness` (default none), a texture whose blue channel scales `metallic` and green channel
+//!   `roughness` texel by texel (integer texels linear unless its `colorspace` says otherwise), `two_sided`.
 //! - `interface`: no surface at all, only the boundary of a medium (pbrt-v4's `interface` material): light
 //!   passes it unchanged in direction and power, shadow rays pass it, and it is never a path vertex. A closed
 //!   object of this material holds its `interior` medium (a cloud box) or vacuum (a region the global fog

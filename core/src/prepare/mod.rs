@@ -256,11 +256,8 @@ fn geometry(
     for (i, o) in scene.objects.iter().enumerate() {
         let object = i as u32;
         if let Some(imp) = imported.get(i).and_then(Option::as_ref) {
-            gltf_object(imp, object, gltf_materials, &mut prims, &mut meshes, &mut emitters);
-            gltf_materials += imp.materials.len() as u32;
-            if with_media {
-                boundaries.push(Boundary::Open);
-            }
+            gltf_materials += gltf_object(imp, object, gltf_materials, &mut prims, &mut meshes, &mut emitters);
+            boundaries.extend(with_media.then_some(Boundary::Open));
             continue;
         }
         let name = o.material().unwrap_or_default();
@@ -340,7 +337,7 @@ fn geometry(
 }
 
 /// The primitives of a glTF object: each imported mesh's triangles with its material (`material_base` plus its
-/// index in the import) and, where it emits, its triangle's emission.
+/// index in the import) and, where it emits, its triangle's emission. Returns the import's material count.
 fn gltf_object(
     imp: &gltf::Imported,
     object: u32,
@@ -348,7 +345,7 @@ fn gltf_object(
     prims: &mut Vec<Primitive>,
     meshes: &mut Vec<MeshShading>,
     emitters: &mut Vec<Emission>,
-) {
+) -> u32 {
     for m in &imp.meshes {
         let mesh_index = meshes.len() as u32;
         let material = material_base + m.material;
@@ -368,6 +365,7 @@ fn gltf_object(
         }
         meshes.push(m.mesh.shading.clone());
     }
+    imp.materials.len() as u32
 }
 
 /// Object `i`, a mesh: its triangles loaded from its file at the level of detail `plan` gives, and when the scene

@@ -7,7 +7,7 @@
 //! emissive materials is lit by a point light at the eye whose irradiance at the centre is 1 W/m² (a warning
 //! says so), so that the render is not black.
 
-use super::{ImportError, Imported, import, is_gltf};
+use super::{ImportError, Imported, import_unlogged, is_gltf};
 use crate::scene::{Scene, SceneError};
 use glam::Vec3;
 use std::path::Path;
@@ -33,7 +33,7 @@ pub fn load_scene(path: &Path, overrides: &[String]) -> Result<Scene, SceneError
 /// The file cannot be imported (as `objects[0].file` of the made scene).
 pub fn scene_text(path: &Path) -> Result<String, SceneError> {
     let limits = crate::scene::Limits::default();
-    let imported = import(path, &glam::Affine3A::IDENTITY, limits.mesh_mib << 20, limits.texture_mib << 20)
+    let imported = import_unlogged(path, &glam::Affine3A::IDENTITY, limits.mesh_mib << 20, limits.texture_mib << 20)
         .map_err(|e: ImportError| e.in_scene(path, 0))?;
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let (mut text, eye, distance) = camera(&imported);

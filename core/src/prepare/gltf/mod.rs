@@ -111,6 +111,21 @@ pub fn import(
     limit: u64,
     texture_limit: u64,
 ) -> Result<Imported, ImportError> {
+    let out = import_unlogged(file, world_from_object, limit, texture_limit)?;
+    for w in &out.warnings {
+        tracing::warn!("{}: {w}", file.display());
+    }
+    Ok(out)
+}
+
+/// [`import`] without logging the warnings (a direct render reads the file once to make its scene, then
+/// prepares that scene, which logs them).
+pub(crate) fn import_unlogged(
+    file: &Path,
+    world_from_object: &Affine3A,
+    limit: u64,
+    texture_limit: u64,
+) -> Result<Imported, ImportError> {
     let gltf = read(file, limit)?;
     let buffers = buffers::load(&gltf, file, limit)?;
     let mut im = Import {
@@ -126,9 +141,6 @@ pub fn import(
     let mut out = Imported { materials, images, ..Imported::default() };
     nodes::walk(&mut im, world_from_object, &mut out)?;
     out.warnings = im.warned.into_iter().collect();
-    for w in &out.warnings {
-        tracing::warn!("{}: {w}", file.display());
-    }
     Ok(out)
 }
 

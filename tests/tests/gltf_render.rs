@@ -1,0 +1,29 @@
+//! `photon-coordinator render model.glb` renders a glTF directly: the shipped showcase at a size given on the
+//! command line, with its own camera and lights, each warning about what it does not support printed once.
+#![allow(clippy::unwrap_used)]
+
+use photon_tests::{coordinator, run_with_timeout, scenes_dir, temp_dir};
+use std::process::Command;
+use std::time::Duration;
+
+#[test]
+fn a_glb_renders_directly() {
+    let dir = temp_dir("gltf-render", "direct");
+    let out = dir.join("showcase.png");
+    let mut cmd = Command::new(coordinator());
+    cmd.arg("render").arg(scenes_dir().join("gltf/showcase.glb")).arg("-o").arg(&out);
+    cmd.args(["--size", "48x32", "--spp", "4", "--threads", "2"]);
+    let o = run_with_timeout(&mut cmd, Duration::from_secs(120));
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{stderr}");
+    let img = image::open(&out).unwrap().to_rgb8();
+    assert_eq!(img.dimensions(), (48, 32));
+    let lit = img.pixels().filter(|p| p.0.iter().any(|&c| c > 8)).count();
+    assert!(lit > 48 * 32 / 4, "only {lit} pixels lit");
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.contains("WARN") && l.contains("showcase.glb")).collect();
+    for w in &warnings {
+        let text = w.split("showcase.glb: ").nth(1).unwrap_or(w);
+        assert_eq!(warnings.iter().filter(|x| x.ends_with(text)).count(), 1, "printed more than once: {w}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
