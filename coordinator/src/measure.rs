@@ -21,23 +21,23 @@ pub struct ReferenceChoice {
     pub reason: String,
 }
 
-/// The path tracer, unless the scene has a point light and a mirror or glass material: light from a point
-/// through a delta surface onto a diffuse one (a point-light caustic) is a path that a camera path can only
-/// complete by hitting the point, which has probability zero, so the path tracer converges to an image without
-/// the caustic. Progressive photon mapping is consistent for those paths.
+/// The path tracer, unless the scene has a delta light (point, spot or directional) and a mirror or glass
+/// material: light from a point through a delta surface onto a diffuse one (a point-light caustic) is a path
+/// that a camera path can only complete by hitting the point, which has probability zero, so the path tracer
+/// converges to an image without the caustic. Progressive photon mapping is consistent for those paths.
 pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
-    let point = prep.lights.lights.iter().any(|l| matches!(l, Light::Point { .. }));
+    let point = prep.lights.lights.iter().any(Light::is_delta);
     let specular = prep.materials.iter().any(Material::has_specular);
     if point && specular {
         ReferenceChoice {
             integrator: Method::Progressive,
-            reason: "the scene has a point light and a mirror or glass material: the caustics it casts are paths \
+            reason: "the scene has a point, spot or directional light and a mirror or glass material: the caustics it casts are paths \
                      a path tracer can never complete, so progressive photon mapping (consistent) renders the \
                      reference"
                 .into(),
         }
     } else {
-        let why = if point { "no mirror or glass material" } else { "no point light" };
+        let why = if point { "no mirror or glass material" } else { "no point, spot or directional light" };
         ReferenceChoice {
             integrator: Method::Path,
             reason: format!(

@@ -69,7 +69,7 @@ fn mapped(mut scene: Scene, at: impl Fn(Vec3) -> Vec3, len: impl Fn(f32) -> f32,
         }
     }
     for l in &mut scene.lights {
-        let LightSpec::Point { position, intensity, power } = l;
+        let LightSpec::Point { position, intensity, power } = l else { panic!("the scenes here have point lights") };
         at(position);
         intensity.iter_mut().chain(power.iter_mut()).for_each(|i| *i *= light);
     }

@@ -33,7 +33,7 @@ fn paths_are_shared_by_power() {
     let first = prep.lights.lights[0];
     let photon_core::light::Light::Point { p, intensity } = first else { panic!("expected a point light") };
     let second = photon_core::light::Light::Point { p: p + glam::Vec3A::X * 0.1, intensity: intensity / 3.0 };
-    prep.lights = photon_core::light::LightSet::new(vec![first, second]);
+    prep.lights = photon_core::light::LightSet::new(vec![first, second], None);
     assert_eq!(paths_per_light(&prep, 1000), vec![750, 250]);
     let traced = trace_photons(&prep, 1000, 0, PhotonKind::Global);
     let total = prep.lights.total_power();

@@ -502,3 +502,54 @@ fn camera_coordinates_that_would_overflow_name_their_own_field() {
     let text = "[camera]\neye = [0.0, 1.0, 3.0]\nlook_at = [0.0, 1.0, 0.0]\nup = [0.0, 1.0e30, 0.0]\n";
     assert_names(&parse_err(text), &["camera.up:", "within ±1e18"]);
 }
+
+#[test]
+fn spot_directional_and_environment_lights_name_the_field_that_is_wrong() {
+    let light = |body: &str| format!("{CAMERA}{WHITE}{SPHERE}[[lights]]\n{body}");
+    let spot = "type = \"spot\"\nposition = [0, 2, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n";
+    let env = "type = \"environment\"\nradiance = [1, 1, 1]\n";
+    let cases = [
+        (light(&spot.replace("direction = [0, -1, 0]", "direction = [0, 0, 0]")), "lights[0].direction", "non-zero"),
+        (light(&format!("{spot}outer_angle = 95\n")), "lights[0].outer_angle", "(0, 90]"),
+        (light(&format!("{spot}outer_angle = 0\n")), "lights[0].outer_angle", "(0, 90]"),
+        (light(&format!("{spot}inner_angle = 50\n")), "lights[0].inner_angle", "[0, outer_angle = 45]"),
+        (light(&spot.replace("intensity = [1, 1, 1]\n", "")), "lights[0].intensity", "exactly one"),
+        (
+            light("type = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, -1, 1]\n"),
+            "lights[0].irradiance",
+            "non-negative",
+        ),
+        (
+            light("type = \"directional\"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n"),
+            "lights[0].direction",
+            "non-zero",
+        ),
+        (light("type = \"environment\"\n"), "lights[0].radiance", "exactly one of `radiance` and `image`"),
+        (light(&format!("{env}image = \"sky.exr\"\n")), "lights[0].radiance", "exactly one of `radiance` and `image`"),
+        (light(&format!("{env}scale = 2.0\n")), "lights[0].scale", "with `image`"),
+        (light("type = \"environment\"\nimage = \"sky.exr\"\nscale = -1.0\n"), "lights[0].scale", "≥ 0"),
+        (format!("{}[[lights]]\n{env}", light(env)), "lights[1].type", "at most one environment"),
+        (format!("{}[medium]\ndensity = 0.1\n", light(env)), "lights[0].type", "participating media"),
+    ];
+    for (text, field, expected) in cases {
+        assert_names(&parse_err(&text), &[field, expected]);
+    }
+    Scene::parse(&light(spot), Path::new(FILE)).unwrap();
+    Scene::parse(&light(env), Path::new(FILE)).unwrap();
+}
+
+#[test]
+fn a_missing_or_broken_environment_image_names_the_light_and_the_file() {
+    let dir = temp_dir("environment-image");
+    std::fs::write(dir.join("broken.exr"), b"not an image").unwrap();
+    for file in ["missing.hdr", "broken.exr"] {
+        let text = format!("{CAMERA}{WHITE}{SPHERE}[[lights]]\ntype = \"environment\"\nimage = \"{file}\"\n");
+        let path = dir.join(FILE);
+        let scene = Scene::parse(&text, &path).unwrap();
+        let msg = match Prepared::new(&scene, &path) {
+            Ok(_) => panic!("prepared a scene whose environment image is {file}"),
+            Err(e) => chain(&e),
+        };
+        assert_names(&msg, &["lights[0]", file]);
+    }
+}

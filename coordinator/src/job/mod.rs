@@ -214,7 +214,7 @@ pub fn prepare_job(
     let (scene_blob, prep, images) = match cached_scene {
         Some(bytes) => {
             // Texture images are not cached: they are read and decoded from their files.
-            let (_, images) = photon_core::prepare::textures::load(scene, scene_path)?;
+            let (_, images, _) = photon_core::prepare::textures::load(scene, scene_path)?;
             (bytes, None, Arc::new(images))
         }
         None => {

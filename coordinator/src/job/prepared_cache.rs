@@ -104,6 +104,15 @@ impl PreparedCache {
             h.update(&(bytes.len() as u64).to_le_bytes());
             h.update(&bytes);
         }
+        // The environment's image decides the scene blob's distribution over it and its power.
+        if let Some((_, file)) = photon_core::prepare::textures::environment_image(scene) {
+            let path = scene.base_dir.join(file);
+            let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
+            let bytes = photon_core::input::read_regular(&path, limit, "limits.texture_mib").unwrap_or_default();
+            h.update(path.to_string_lossy().as_bytes());
+            h.update(&(bytes.len() as u64).to_le_bytes());
+            h.update(&bytes);
+        }
         // The level of detail of each mesh: kept whole (0), or simplified with this bound (its bits).
         for lod in photon_core::prepare::lod::plan(scene) {
             let bound = match lod {

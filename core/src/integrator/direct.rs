@@ -4,6 +4,7 @@
 
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
+use crate::light::LightSample;
 use crate::material::Material;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::{Ray, power_heuristic};
@@ -19,6 +20,16 @@ pub fn unoccluded(prep: &Prepared, hit: &Hit, wi: Vec3A, target: Vec3A) -> bool 
     let ray = hit.spawn_ray(wi);
     let dist = (target - ray.o).length();
     !prep.geometry.occluded(&Ray::new(ray.o, (target - ray.o) / dist), dist * (1.0 - 1e-5))
+}
+
+/// Whether light sample `ls` reaches `hit`: the segment to its point is free ([`unoccluded`]), or for an
+/// infinitely distant light, the ray towards it escapes.
+pub fn reaches(prep: &Prepared, hit: &Hit, ls: &LightSample) -> bool {
+    if ls.infinite() {
+        !prep.geometry.occluded(&hit.spawn_ray(ls.wi), f32::INFINITY)
+    } else {
+        unoccluded(prep, hit, ls.wi, ls.p)
+    }
 }
 
 /// Direct light at `hit` from one light chosen by power, sampled on the light. With `mis`, area-light samples
@@ -38,7 +49,7 @@ pub fn sample_one_light(
     let (u, u2) = (tracer.sampler.next_f32(), tracer.sampler.next_2d());
     let Some((i, pmf)) = prep.lights.choose(u) else { return Rgb::ZERO };
     let light = &prep.lights.lights[i];
-    let Some(ls) = light.sample_li(&prep.geometry, hit.p, u2) else { return Rgb::ZERO };
+    let Some(ls) = light.sample_li(&prep.light_scene(), hit.p, u2) else { return Rgb::ZERO };
     let f = bsdf.f(wo, ls.wi, TransportMode::Radiance);
     // Written so that a NaN pdf also returns: every division below is by a positive pdf or pmf.
     if f == Rgb::ZERO || !(ls.pdf > 0.0 && pmf > 0.0 && pmf * ls.pdf > 0.0) {
@@ -47,11 +58,13 @@ pub fn sample_one_light(
     let f = match &prep.media {
         None => {
             tracer.rays += 1;
-            if !unoccluded(prep, hit, ls.wi, ls.p) {
+            if !reaches(prep, hit, &ls) {
                 return Rgb::ZERO;
             }
             f
         }
+        // Infinitely distant lights are refused in scenes with media (`Scene::check`).
+        Some(_) if ls.infinite() => return Rgb::ZERO,
         Some(media) => {
             let origin = hit.spawn_ray(ls.wi).o;
             let tr = shadow_transmittance(tracer, media, origin, ls.p, media.after(hit, ls.wi, medium));
@@ -91,11 +104,12 @@ pub fn photon_vertex_direct(tracer: &mut Tracer, hit: &Hit, bsdf: &Bsdf, wo: Vec
         return l;
     }
     let ray = hit.spawn_ray(bs.wi);
-    if let Some(h) = tracer.intersect(&ray, f32::INFINITY) {
-        let (le, w) = emission(prep, &h, &ray, false, bs.pdf);
-        if le != Rgb::ZERO {
-            l += bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance) * le * w;
-        }
+    let (le, w) = match tracer.intersect(&ray, f32::INFINITY) {
+        Some(h) => emission(prep, &h, &ray, false, bs.pdf),
+        None => escaped(prep, &ray, false, bs.pdf),
+    };
+    if le != Rgb::ZERO {
+        l += bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance) * le * w;
     }
     l
 }
@@ -113,6 +127,20 @@ pub(super) fn emission(prep: &Prepared, hit: &Hit, ray: &Ray, prev_delta: bool, 
         return (le, 1.0);
     }
     let light_pdf = prep.lights.pmf(hit.light as usize) * light.pdf_li(ray, hit);
+    (le, power_heuristic(prev_pdf, light_pdf))
+}
+
+/// The environment's radiance along `ray`, which escaped the scene from a surface vertex (or the camera), and
+/// its MIS weight as [`emission`]'s: 1 after a delta lobe or the camera, else the power heuristic against light
+/// sampling's density of the direction. Zero without an environment.
+pub(super) fn escaped(prep: &Prepared, ray: &Ray, prev_delta: bool, prev_pdf: f32) -> (Rgb, f32) {
+    let Some((i, env)) = prep.lights.environment() else { return (Rgb::ZERO, 0.0) };
+    let scene = prep.light_scene();
+    let le = env.le_escaped(&scene, ray.d);
+    if le == Rgb::ZERO || prev_delta {
+        return (le, 1.0);
+    }
+    let light_pdf = prep.lights.pmf(i) * env.pdf_escaped(&scene, ray.d);
     (le, power_heuristic(prev_pdf, light_pdf))
 }
 

@@ -27,7 +27,7 @@ pub mod photon_map;
 pub mod visible;
 pub mod volume;
 
-pub use direct::{photon_vertex_direct, sample_one_light, shadow_transmittance, unoccluded};
+pub use direct::{photon_vertex_direct, reaches, sample_one_light, shadow_transmittance, unoccluded};
 pub use visible::{Segment, VisiblePoint, VolumeEstimate, visible_point, visible_point_in};
 
 use crate::Rgb;

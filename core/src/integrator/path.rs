@@ -8,7 +8,7 @@
 //! that first BSDF sample. That bounce (`PathState::bounce`) is the volumetric path tracer's too
 //! ([`super::volume::path_li`]).
 
-use super::direct::{emission, sample_one_light};
+use super::direct::{emission, escaped, sample_one_light};
 use crate::Rgb;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::Ray;
@@ -26,7 +26,13 @@ pub fn li(tracer: &mut Tracer, max_depth: u32, mut ray: Ray, direct_only: bool) 
     let mut l = Rgb::ZERO;
     let mut path = PathState::new();
     for depth in 0..=max_depth {
-        let Some(hit) = tracer.intersect(&ray, f32::INFINITY) else { break };
+        let Some(hit) = tracer.intersect(&ray, f32::INFINITY) else {
+            let (le, w) = escaped(prep, &ray, path.prev_delta, path.prev_pdf);
+            if le != Rgb::ZERO {
+                l += path.beta * le * w;
+            }
+            break;
+        };
         let wo = -ray.d;
         let (le, w) = emission(prep, &hit, &ray, path.prev_delta, path.prev_pdf);
         if le != Rgb::ZERO {

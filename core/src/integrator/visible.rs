@@ -71,7 +71,12 @@ pub fn visible_point_in(
                 break;
             }
         }
-        let Some(hit) = found else { break };
+        let Some(hit) = found else {
+            if let Some((_, env)) = prep.lights.environment() {
+                le += beta * env.le_escaped(&prep.light_scene(), ray.d);
+            }
+            break;
+        };
         let wo = -ray.d;
         if hit.light != NONE
             && let Some(light) = prep.lights.lights.get(hit.light as usize)

@@ -53,8 +53,8 @@ pub enum Strategy {
 /// A point chosen on a light for one segment's single-scattering estimate.
 #[derive(Clone, Copy, Debug)]
 enum LightPoint {
-    /// A point light: position and intensity (W/sr).
-    Point { p: Vec3A, intensity: Rgb },
+    /// A point or spot light: its position and the light (for its intensity towards the medium point).
+    Point { p: Vec3A, light: Light },
     /// A point on an area light: position, its error bound, the surface normal, radiance, sidedness, and the
     /// light's area (the point was chosen uniformly by area).
     Area { p: Vec3A, p_error: Vec3A, n: Vec3A, le: Rgb, two_sided: bool, area: f32 },
@@ -65,11 +65,13 @@ impl LightPoint {
     fn sample(prep: &Prepared, u: f32, u2: glam::Vec2) -> Option<(Self, f32)> {
         let (i, pmf) = prep.lights.choose(u)?;
         let lp = match prep.lights.lights[i] {
-            Light::Point { p, intensity } => LightPoint::Point { p, intensity },
+            l @ (Light::Point { p, .. } | Light::Spot { p, .. }) => LightPoint::Point { p, light: l },
             Light::Area { prim, le, two_sided, area } => {
                 let (p, p_error, n) = prep.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
                 LightPoint::Area { p, p_error, n, le, two_sided, area }
             }
+            // Refused in scenes with media (`Scene::check`).
+            Light::Directional { .. } | Light::Environment { .. } => return None,
         };
         (pmf > 0.0).then_some((lp, pmf))
     }
@@ -94,8 +96,12 @@ impl LightPoint {
     /// a solid-angle pdf at `x` into an area pdf on the light). Counts the shadow ray.
     fn incident(&self, tracer: &mut Tracer, x: Vec3A, m: &Medium) -> Option<(Vec3A, Rgb, f32)> {
         let (target, li, geometric) = match *self {
-            LightPoint::Point { p, intensity } => {
-                let d2 = (p - x).length_squared();
+            LightPoint::Point { p, light } => {
+                let d2 = (x - p).length_squared();
+                let intensity = match light {
+                    Light::Spot { .. } => light.intensity((x - p) / d2.sqrt()),
+                    _ => light.intensity(Vec3A::Z),
+                };
                 (p, intensity / d2, 0.0)
             }
             LightPoint::Area { p, p_error, n, le, two_sided, area } => {

@@ -94,6 +94,19 @@ fn check_lights(lights: &LightSet, g: &Geometry, media: Option<&Media>) -> Resul
         }
     }
     let n = lights.lights.len();
+    // The environment, if any, is the last light ([`LightSet::environment`]), and has a distribution exactly
+    // when it has an image.
+    let env = lights.lights.iter().position(|l| matches!(l, Light::Environment { .. }));
+    if let Some(e) = env.filter(|&e| e + 1 != n) {
+        return Err(bad_table(format!("lights[{e}]"), format!("is an environment, but only the last of {n} may be")));
+    }
+    let image = lights.environment().and_then(|(_, l)| match *l {
+        Light::Environment { image, .. } if image != NONE => Some(image),
+        _ => None,
+    });
+    if image.is_some() != lights.sky.is_some() {
+        return Err(bad_table("lights.sky".into(), "is present exactly when the environment has an image".into()));
+    }
     let (cdf, pmf) = lights.table_lens();
     let media_lights = media.map(|m| ("media.lights", m.lights.len()));
     for (table, len) in [("lights.cdf", cdf), ("lights.pmf", pmf)].into_iter().chain(media_lights) {
@@ -298,6 +311,7 @@ impl Prepared {
     ) -> Result<Self, FrameError> {
         let s = SceneOwned::decode(scene, limit)?;
         check_slots(&s.materials, textures.len())?;
+        check_environment(&s.lights, &textures)?;
         let (geometry, materials, lights, media) = (s.geometry, s.materials, s.lights, s.media);
         Ok(Self { camera, geometry, materials, lights, settings, photons: None, media, textures })
     }
@@ -317,6 +331,7 @@ impl Prepared {
         let photons = photons.map(|p| codec::decode(p, limit)).transpose()?;
         let textures = decode_textures(textures, limit)?;
         check_slots(&s.materials, textures.len())?;
+        check_environment(&s.lights, &textures)?;
         Ok(Self {
             camera: f.camera,
             geometry: s.geometry,
@@ -359,4 +374,23 @@ fn check_slots(materials: &[Material], n: usize) -> Result<(), FrameError> {
         }
     }
     Ok(())
+}
+
+/// The environment's image slot below the texture count, and its distribution made for that image's size.
+fn check_environment(lights: &LightSet, textures: &[TexelImage]) -> Result<(), FrameError> {
+    let Some((_, &Light::Environment { image, .. })) = lights.environment() else { return Ok(()) };
+    if image == NONE {
+        return Ok(());
+    }
+    let n = textures.len();
+    let Some(img) = textures.get(image as usize) else {
+        return Err(FrameError::Textures(format!("the environment reads texture {image} of {n}")));
+    };
+    match &lights.sky {
+        Some(sky) if sky.fits(img.width, img.height) => Ok(()),
+        _ => Err(bad_table(
+            "lights.sky".into(),
+            format!("does not fit the environment's {}×{} image", img.width, img.height),
+        )),
+    }
 }

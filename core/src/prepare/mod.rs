@@ -17,14 +17,16 @@ use crate::camera::Camera;
 use crate::geometry::mesh::Normals;
 use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
-use crate::light::{Light, LightSet};
+use crate::light::{BoundingSphere, Light, LightScene, LightSet, SkyDistribution};
 use crate::material::{Material, TexelImage};
+use crate::math::fmath;
 use crate::medium::{Boundary, Media, Medium};
 use crate::method::RadiusSetting;
 use crate::photon::{Estimator, Gather, PhotonMaps};
 use crate::scene::{Emission, GatherMode, LightSpec, MediumSpec, Object, RenderSettings, Scene, SceneError};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
+use std::f32::consts::PI;
 
 /// Everything a worker needs to render any pixel of a scene.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -50,17 +52,24 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// What the lights read beside themselves: the geometry, the texture images and the environment's
+    /// distribution.
+    #[inline]
+    pub fn light_scene(&self) -> LightScene<'_> {
+        self.lights.scene(&self.geometry, &self.textures)
+    }
+
     /// Loads meshes, builds the BVH, resolves materials to indices and builds the lights, for a validated
     /// scene; `scene_path` names the scene in errors. Photon maps are a separate step
     /// ([`Prepared::with_photon_maps`]): `photons` is `None` here.
     pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
         let mut imported = gltf::import_all(scene, scene_path)?;
-        let (materials, images) = textures::load_with(scene, scene_path, &mut imported)?;
+        let (materials, images, env_slot) = textures::load_with(scene, scene_path, &mut imported)?;
         let (mut geometry, emitters, boundaries) = geometry(scene, scene_path, &imported)?;
         check_photon_radius(scene, &geometry, scene_path)?;
         let imported_lights: Vec<LightSpec> =
             imported.iter().flatten().flat_map(|i| i.lights.iter().cloned()).collect();
-        let lights = lights(scene.lights.iter().chain(&imported_lights), &mut geometry, &emitters);
+        let lights = lights(scene, &imported_lights, &mut geometry, &emitters, &images, env_slot);
         let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
         if media.is_some() && scene.render.integrator.warns_in_media() {
             tracing::warn!(
@@ -175,17 +184,6 @@ fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::pat
     Ok(())
 }
 
-/// Whether the scene has a participating medium anywhere (global or inside an object), or an `interface`
-/// material (the boundary of one).
-pub fn has_media(scene: &Scene) -> bool {
-    scene.medium.is_some()
-        || scene.materials.values().any(Material::is_interface)
-        || scene
-            .objects
-            .iter()
-            .any(|o| matches!(o, Object::Sphere { interior: Some(_), .. } | Object::Mesh { interior: Some(_), .. }))
-}
-
 /// The scene's media: the global one, what each object separates (with the medium outside each closed object:
 /// the interior of the closed object around it, or the global one), and the media of the camera and the lights.
 fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<Boundary>) -> Media {
@@ -219,13 +217,15 @@ fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<
         .lights
         .iter()
         .map(|l| match l {
-            Light::Point { p, .. } => media.at(geometry, *p, None),
+            Light::Point { p, .. } | Light::Spot { p, .. } => media.at(geometry, *p, None),
             // An open emitter's medium is the one around a point on it; a closed one's photons leave through
             // its surface, which `Media::leaving` settles.
             Light::Area { prim, .. } => match geometry.prims.get(*prim as usize) {
                 Some(pr) => media.at(geometry, pr.shape.sample_area(glam::Vec2::splat(0.5)).0, Some(pr.object)),
                 None => media.global,
             },
+            // Not in a scene with media (the scene's check refuses them there).
+            Light::Directional { .. } | Light::Environment { .. } => media.global,
         })
         .collect();
     media
@@ -243,7 +243,7 @@ fn geometry(
     scene_path: &std::path::Path,
     imported: &[Option<gltf::Imported>],
 ) -> Result<GeometryParts, SceneError> {
-    let with_media = has_media(scene);
+    let with_media = scene.has_media();
     let mut boundaries: Vec<Boundary> = Vec::new();
     let mut prims: Vec<Primitive> = Vec::new();
     let mut planes = Vec::new();
@@ -455,9 +455,18 @@ fn level_of_detail(
     }
 }
 
-/// The lights: area lights in scene order (whatever order the BVH put their primitives in), then point
-/// lights; each emitting primitive is pointed at its final light index.
-fn lights<'a>(specs: impl Iterator<Item = &'a LightSpec>, geometry: &mut Geometry, emitters: &[Emission]) -> LightSet {
+/// The lights: area lights in scene order (whatever order the BVH put their primitives in), then point, spot
+/// and directional lights in scene order and those of glTF objects (`imported`), then the environment (with the
+/// distribution of its image, texture slot `env_slot` of `images`); each emitting primitive is pointed at its
+/// final light index.
+fn lights(
+    scene: &Scene,
+    imported: &[LightSpec],
+    geometry: &mut Geometry,
+    emitters: &[Emission],
+    images: &[TexelImage],
+    env_slot: u32,
+) -> LightSet {
     let mut lights: Vec<Light> = Vec::new();
     let mut area_lights: Vec<(u32, Light)> = Vec::new();
     for (pi, p) in geometry.prims.iter().enumerate() {
@@ -477,16 +486,55 @@ fn lights<'a>(specs: impl Iterator<Item = &'a LightSpec>, geometry: &mut Geometr
     // Keep lights in scene order (by their original index), whatever order the BVH put primitives in.
     area_lights.sort_by_key(|(k, _)| *k);
     lights.extend(area_lights.into_iter().map(|(_, l)| l));
-    for l in specs {
-        match l {
-            LightSpec::Point { position, intensity, power } => {
-                let intensity = match (intensity, power) {
-                    (Some(i), _) => Rgb::from(*i),
-                    (None, Some(p)) => Rgb::from(*p) / (4.0 * std::f32::consts::PI),
-                    (None, None) => Rgb::ZERO,
-                };
-                lights.push(Light::Point { p: Vec3A::from(*position), intensity });
+    let bounds = bounding_sphere(geometry);
+    let mut sky = None;
+    for l in scene.lights.iter().chain(imported) {
+        let intensity =
+            |intensity: &Option<glam::Vec3>, power: &Option<glam::Vec3>, per_sr: f32| match (intensity, power) {
+                (Some(i), _) => Rgb::from(*i),
+                (None, Some(p)) => Rgb::from(*p) / per_sr,
+                (None, None) => Rgb::ZERO,
+            };
+        let light = match l {
+            LightSpec::Point { position, intensity: i, power } => {
+                Light::Point { p: Vec3A::from(*position), intensity: intensity(i, power, 4.0 * PI) }
             }
+            LightSpec::Spot { position, direction, intensity: i, power, inner_angle, outer_angle } => {
+                let (cos_outer, cos_inner) =
+                    (fmath::cos(outer_angle.to_radians()), fmath::cos(inner_angle.to_radians()));
+                // The power of unit intensity ([`Light::power`]).
+                let per_sr = 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer));
+                Light::Spot {
+                    p: Vec3A::from(*position),
+                    intensity: intensity(i, power, per_sr),
+                    axis: fmath::normalize(Vec3A::from(*direction)),
+                    cos_outer,
+                    cos_inner,
+                }
+            }
+            LightSpec::Directional { direction, irradiance } => Light::Directional {
+                d: fmath::normalize(Vec3A::from(*direction)),
+                irradiance: Rgb::from(*irradiance),
+                bounds,
+            },
+            // The environment comes last ([`LightSet::environment`]).
+            LightSpec::Environment { .. } => continue,
+        };
+        lights.push(light);
+    }
+    for l in &scene.lights {
+        if let LightSpec::Environment { radiance, scale, rotate, .. } = l {
+            let image = images.get(env_slot as usize);
+            sky = image.map(SkyDistribution::new);
+            let (radiance, mean) = match (radiance, image) {
+                (Some(r), _) => (Rgb::from(*r), Rgb::from(*r)),
+                (None, Some(img)) => (Rgb::splat(*scale), *scale * SkyDistribution::mean_radiance(img)),
+                (None, None) => (Rgb::ZERO, Rgb::ZERO),
+            };
+            let turn = rotate.to_radians();
+            let turn = glam::Vec2::new(fmath::cos(turn), fmath::sin(turn));
+            let image = if image.is_some() { env_slot } else { NONE };
+            lights.push(Light::Environment { radiance, image, turn, mean, bounds });
         }
     }
     // Primitives point at their light by the final light index.
@@ -499,5 +547,19 @@ fn lights<'a>(specs: impl Iterator<Item = &'a LightSpec>, geometry: &mut Geometr
     for (p, l) in geometry.prims.iter_mut().zip(light_of_prim) {
         p.light = l;
     }
-    LightSet::new(lights)
+    LightSet::new(lights, sky)
+}
+
+/// The sphere around the bounded primitives (planes are not counted), from which the infinitely distant
+/// lights' photons leave: the bounding box's centre and half its diagonal; a unit sphere about the origin when
+/// there is no bounded primitive.
+fn bounding_sphere(geometry: &Geometry) -> BoundingSphere {
+    let b = geometry.bounds();
+    let (min, max) = (Vec3A::from(b.min), Vec3A::from(b.max));
+    let radius = 0.5 * (max - min).length();
+    if radius.is_finite() && radius > 0.0 {
+        BoundingSphere { center: 0.5 * (min + max), radius }
+    } else {
+        BoundingSphere { center: Vec3A::ZERO, radius: 1.0 }
+    }
 }

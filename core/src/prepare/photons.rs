@@ -156,7 +156,8 @@ pub fn trace_photons_guarded(
     Ok(traced)
 }
 
-/// Emits one photon from light `light` (an index into the light set) with power `phi` (W per channel), drawing
+/// Emits one photon from light `light` (an index into the light set) with power `phi` (W per channel; its share of the
+/// light's power, scaled as [`crate::light::Light::emits_as_sampled`] says), drawing
 /// from the tracer's stream, and follows it, appending the surface photons it stores to `out` and, in a scene
 /// with media, the photons it scatters in a medium to `volume`.
 ///
@@ -178,12 +179,15 @@ pub fn trace_path(
     let media = prep.media.as_ref();
     let mut medium = media.and_then(|m| m.lights.get(light).copied().flatten());
     // The light's choice is the caller's (photons per light in proportion to power): its densities are unused.
-    let Some(e) = l.sample_le(&prep.geometry, 1.0, &mut tracer.sampler) else { return };
+    let Some(e) = l.sample_le(&prep.light_scene(), 1.0, &mut tracer.sampler) else { return };
     if let (Some(media), Some((object, n))) = (media, e.surface) {
         medium = media.leaving(object, n, e.ray.d, medium);
     }
     let mut ray = e.ray;
-    let mut power = phi;
+    // A light that emits in proportion to its sampling density gives every photon the same share `phi`; a spot
+    // light's falloff and an environment image's colours make the sample's weight vary about its mean, the
+    // light's power: the photon carries its share scaled by that ratio.
+    let mut power = if l.emits_as_sampled() { phi } else { phi * e.beta / l.power() };
     let mut specular_only = true;
     let (mut depth, mut crossings) = (0u32, 0u32);
     while depth < prep.settings.max_depth {

@@ -4,38 +4,59 @@
 //! texels).
 //!
 //! Slots follow the materials in name order and, within a material, its colours in declaration order, then
-//! its bump or normal map; a file read twice (the same path) has one slot. The order depends only on the scene
-//! text, so a scene blob from the cache and freshly decoded images always agree. The images of glTF objects
-//! ([`super::gltf`]) follow, object by object, in the order their materials read them, after the scene's own
-//! materials and then each glTF object's materials.
+//! its bump or normal map, then the environment's image; a file read twice (the same path) has one slot. The
+//! order depends only on the scene text, so a scene blob from the cache and freshly decoded images always agree.
+//! The images of glTF objects ([`super::gltf`]) follow, object by object, in the order their materials read
+//! them, after the scene's own materials and then each glTF object's materials.
 
 use crate::material::Material;
 use crate::material::texture::{TexelImage, decode_file};
-use crate::scene::{Scene, SceneError};
+use crate::scene::{LightSpec, Scene, SceneError};
 use std::path::{Path, PathBuf};
 
-/// The distinct image files of `scene`'s materials in slot order, each with the field that first names it
-/// (`materials.wood.albedo`) for error messages.
+/// The distinct image files of `scene`'s materials and environment in slot order, each with the field that
+/// first names it (`materials.wood.albedo`, `lights[2]`) for error messages.
 pub fn files(scene: &Scene) -> Vec<(PathBuf, String)> {
     let mut out: Vec<(PathBuf, String)> = Vec::new();
+    let mut add = |path: PathBuf, field: String| {
+        if !out.iter().any(|(p, _)| *p == path) {
+            out.push((path, field));
+        }
+    };
     for (name, m) in &scene.materials {
         for (field, r) in m.images() {
-            let path = scene.base_dir.join(&r.file);
-            if !out.iter().any(|(p, _)| *p == path) {
-                out.push((path, format!("materials.{name}.{field}")));
-            }
+            add(scene.base_dir.join(&r.file), format!("materials.{name}.{field}"));
         }
+    }
+    if let Some((i, file)) = environment_image(scene) {
+        add(scene.base_dir.join(file), format!("lights[{i}]"));
     }
     out
 }
 
-/// The materials of `scene` in name order with every image's slot set, and the decoded images by slot.
+/// The environment's image file as the scene names it, with the environment's index among the lights.
+pub fn environment_image(scene: &Scene) -> Option<(usize, &Path)> {
+    scene.lights.iter().enumerate().find_map(|(i, l)| match l {
+        LightSpec::Environment { image: Some(file), .. } => Some((i, file.as_path())),
+        _ => None,
+    })
+}
+
+/// The texture slot of the environment's image among `files` ([`files`]), or [`crate::geometry::NONE`].
+pub fn environment_slot(scene: &Scene, files: &[(PathBuf, String)]) -> u32 {
+    environment_image(scene)
+        .and_then(|(_, file)| files.iter().position(|(p, _)| *p == scene.base_dir.join(file)))
+        .map_or(crate::geometry::NONE, |i| i as u32)
+}
+
+/// The materials of `scene` in name order with every image's slot set, the decoded images by slot, and the
+/// environment image's slot ([`crate::geometry::NONE`] without one).
 ///
 /// # Errors
 /// [`SceneError::Texture`] naming the scene, the material's field and the file: the file cannot be read or
 /// decoded, is empty, has a side of 0 or over [`crate::material::texture::MAX_TEXTURE_SIDE`], or decodes to
 /// more than `limits.texture_mib`; float texels that are negative or not finite.
-pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
+pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>, u32), SceneError> {
     load_with(scene, scene_path, &mut super::gltf::import_all(scene, scene_path)?)
 }
 
@@ -48,8 +69,8 @@ pub fn load_with(
     scene: &Scene,
     scene_path: &Path,
     imported: &mut [Option<super::gltf::Imported>],
-) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
-    let (mut materials, mut images) = load_scene_images(scene, scene_path)?;
+) -> Result<(Vec<Material>, Vec<TexelImage>, u32), SceneError> {
+    let (mut materials, mut images, env_slot) = load_scene_images(scene, scene_path)?;
     for imp in imported.iter_mut().flatten() {
         let offset = images.len() as u32;
         for m in &imp.materials {
@@ -61,11 +82,12 @@ pub fn load_with(
         }
         images.append(&mut imp.images);
     }
-    Ok((materials, images))
+    Ok((materials, images, env_slot))
 }
 
-/// The scene's own materials (name order) with their slots set, and their images.
-fn load_scene_images(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>), SceneError> {
+/// The scene's own materials (name order) with their slots set, their images and the environment's, and the
+/// environment image's slot.
+fn load_scene_images(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>, u32), SceneError> {
     let files = files(scene);
     let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
     let mut images = Vec::with_capacity(files.len());
@@ -97,5 +119,6 @@ fn load_scene_images(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>,
             }
         }
     }
-    Ok((materials, images))
+    let env_slot = environment_slot(scene, &files);
+    Ok((materials, images, env_slot))
 }

@@ -56,7 +56,7 @@ use super::samples::{camera_sample, for_each_pixel};
 use super::sums::{BlockSums, MAX_UNIT_SUM, finite_or_zero, to_fixed};
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
-use crate::integrator::unoccluded;
+use crate::integrator::{reaches, unoccluded};
 use crate::light::Light;
 use crate::material::bsdf::{Bsdf, TransportMode};
 use crate::math::rng::{Domain, Sampler};
@@ -186,16 +186,18 @@ fn stored_bytes(it: &Iteration, subpaths: u64, vertices: u64, splats: u64) -> u6
     vertices * (2 * LIGHT_VERTEX_BYTES + tree) + splats * 2 * SPLAT_BYTES + subpaths * 8
 }
 
-/// Emission of a light subpath: the first ray, and the throughput and MIS quantities before the first hit
-/// (eqs. 31–33, with delta lights as eqs. 48–50).
-fn emit(tracer: &mut Tracer, it: &Iteration) -> Option<(Ray, Subpath)> {
+/// Emission of a light subpath: the first ray, the throughput and MIS quantities before the first hit (eqs.
+/// 31–33, with delta lights as eqs. 48–50), and whether the light is infinitely far (its densities are per
+/// solid angle at the first hit, not per area: the report's §5.1).
+fn emit(tracer: &mut Tracer, it: &Iteration) -> Option<(Ray, Subpath, bool)> {
     let prep = tracer.prep;
     let (i, pick) = prep.lights.choose(tracer.sampler.next_f32())?;
-    let e = prep.lights.lights.get(i)?.sample_le(&prep.geometry, pick, &mut tracer.sampler)?;
+    let e = prep.lights.lights.get(i)?.sample_le(&prep.light_scene(), pick, &mut tracer.sampler)?;
     if !(e.pdf_w > 0.0 && e.beta.is_finite()) {
         return None;
     }
-    Some((e.ray, Subpath { beta: e.beta, mis: MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta) }))
+    let mis = MisState::emitted(it, e.pdf_a, e.pdf_w, e.cos, e.delta);
+    Some((e.ray, Subpath { beta: e.beta, mis }, e.infinite))
 }
 
 /// A subpath after its last vertex: its throughput and its MIS quantities.
@@ -211,11 +213,13 @@ struct Subpath {
 /// (when connecting, or light tracing).
 fn light_subpath(tracer: &mut Tracer, it: &Iteration, vertices: &mut Vec<LightVertex>, splats: &mut Vec<Splat>) {
     let prep = tracer.prep;
-    let Some((mut ray, mut path)) = emit(tracer, it) else { return };
+    let Some((mut ray, mut path, infinite)) = emit(tracer, it) else { return };
     let tech = it.techniques;
     while let Some(hit) = tracer.intersect(&ray, f32::INFINITY) {
         let wo = -ray.d;
-        path.mis.arrive(hit.t, wo.dot(hit.n).abs());
+        // From an infinitely distant light the first segment's length is not part of the densities (§5.1).
+        let dist = if infinite && path.mis.len == 1 { 1.0 } else { hit.t };
+        path.mis.arrive(dist, wo.dot(hit.n).abs());
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         let bsdf = material.bsdf(&hit, &prep.textures);
         if bsdf.black_from(wo) {
@@ -355,7 +359,11 @@ fn camera_walk(tracer: &mut Tracer, it: &Iteration, light: &LightSide, mut ray: 
     let mut path = Subpath { beta: Rgb::ONE, mis: MisState::from_camera(it, camera_pdf_w) };
     let mut l = Rgb::ZERO;
     let own_path = light.paths.of(index);
-    while let Some(hit) = tracer.intersect(&ray, f32::INFINITY) {
+    loop {
+        let Some(hit) = tracer.intersect(&ray, f32::INFINITY) else {
+            l += finite_or_zero(path.beta * escaped(prep, it, ray.d, &path.mis));
+            break;
+        };
         let wo = -ray.d;
         path.mis.arrive(hit.t, wo.dot(hit.n).abs());
         if hit.light != NONE {
@@ -419,6 +427,22 @@ fn emission(prep: &Prepared, it: &Iteration, hit: &Hit, wo: Vec3A, state: &MisSt
     le * weights::emission(state, direct_pdf_a, emission_pdf_w)
 }
 
+/// The environment's radiance along a camera subpath in `state` that escaped in direction `d`, weighted as
+/// [`emission`] weighs an area light's (SmallVCM's background light: densities per solid angle, §5.1).
+fn escaped(prep: &Prepared, it: &Iteration, d: Vec3A, state: &MisState) -> Rgb {
+    let Some((i, env)) = prep.lights.environment() else { return Rgb::ZERO };
+    let scene = prep.light_scene();
+    let le = env.le_escaped(&scene, d);
+    if le == Rgb::ZERO || state.len == 1 {
+        return le;
+    }
+    if it.techniques.light_tracing_only {
+        return Rgb::ZERO;
+    }
+    let (direct_pdf, emission_pdf_w) = env.pdf_le_escaped(&scene, prep.lights.pmf(i), d);
+    le * weights::emission(state, direct_pdf, emission_pdf_w)
+}
+
 /// Next-event estimation at a camera vertex: a light chosen by power, a point on it (SmallVCM's
 /// `DirectIllumination`; eqs. 44–45).
 fn direct_light(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex) -> Rgb {
@@ -426,16 +450,21 @@ fn direct_light(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex) -> Rgb {
     let (u, u2) = (tracer.sampler.next_f32(), tracer.sampler.next_2d());
     let Some((i, pick)) = prep.lights.choose(u) else { return Rgb::ZERO };
     let Some(light) = prep.lights.lights.get(i) else { return Rgb::ZERO };
-    let Some(ls) = light.sample_li(&prep.geometry, c.hit.p, u2) else { return Rgb::ZERO };
-    // Radiance (or intensity), the solid-angle density of the sample at the vertex, the emission density of
-    // the opposite direction, and the cosine at the light.
+    let Some(ls) = light.sample_li(&prep.light_scene(), c.hit.p, u2) else { return Rgb::ZERO };
+    // Radiance (or intensity, or irradiance), the solid-angle density of the sample at the vertex (for a point
+    // or spot light, the squared distance that turns its intensity into irradiance; 1 for a directional
+    // light), the emission density of the opposite direction, and the cosine at the light (SmallVCM's
+    // `Illuminate` of each light).
     let (radiance, direct_pdf_w, emission_pdf_w, cos_light) = match *light {
         Light::Point { intensity, .. } => (intensity, ls.dist * ls.dist, 1.0 / (4.0 * PI), 1.0),
+        Light::Spot { .. } => (light.intensity(-ls.wi), ls.dist * ls.dist, light.direction_pdf(), 1.0),
         Light::Area { area, two_sided, .. } => {
             let cos_light = ls.dist * ls.dist / (ls.pdf * area);
             let sides = if two_sided { 0.5 } else { 1.0 };
             (ls.li, ls.pdf, cos_light * FRAC_1_PI * sides / area, cos_light)
         }
+        Light::Directional { bounds, .. } => (ls.li, 1.0, bounds.disc_pdf(), 1.0),
+        Light::Environment { bounds, .. } => (ls.li, ls.pdf, ls.pdf * bounds.disc_pdf(), 1.0),
     };
     let f = c.bsdf.f(c.wo, ls.wi, TransportMode::Radiance);
     if f == Rgb::ZERO || !(direct_pdf_w > 0.0 && pick > 0.0 && cos_light > 0.0) {
@@ -447,7 +476,7 @@ fn direct_light(tracer: &mut Tracer, it: &Iteration, c: &CameraVertex) -> Rgb {
     let weight = weights::direct(it, &c.mis, bsdf_pdf, bsdf_pdf_rev, pick * direct_pdf_w, emission_ratio);
     let contribution = radiance * f * (weight * ls.wi.dot(c.bsdf.frame.n).abs() / (pick * direct_pdf_w));
     tracer.rays += 1;
-    if !unoccluded(prep, c.hit, ls.wi, ls.p) {
+    if !reaches(prep, c.hit, &ls) {
         return Rgb::ZERO;
     }
     contribution

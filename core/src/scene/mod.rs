@@ -63,7 +63,7 @@ pub struct Scene {
     /// Surfaces.
     #[serde(default)]
     pub objects: Vec<Object>,
-    /// Point lights (area lights are objects with `emission`).
+    /// Point, spot and directional lights and the environment (area lights are objects with `emission`).
     #[serde(default)]
     pub lights: Vec<LightSpec>,
     /// Limits on the files the scene reads.

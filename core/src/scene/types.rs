@@ -477,7 +477,8 @@ impl Object {
     }
 }
 
-/// A point light, given by its radiant intensity or its total power.
+/// A light that is not a surface: a point, spot or directional light, or the environment (area lights are
+/// objects with `emission`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum LightSpec {
@@ -492,6 +493,61 @@ pub enum LightSpec {
         #[serde(default)]
         power: Option<Vec3>,
     },
+    /// A spot light at `position` shining along `direction`: radiant intensity `intensity` (W/sr) within
+    /// `inner_angle` of the axis, falling off smoothly (a smoothstep in the cosine, pbrt-v4 §12.1.1) to 0 at
+    /// `outer_angle`. Give exactly one of `intensity` and `power` (W, = 2π·I·(1 − (cos inner + cos outer)/2)).
+    Spot {
+        /// Position.
+        position: Vec3,
+        /// The axis of the cone (need not be unit length).
+        direction: Vec3,
+        /// Radiant intensity on the axis per channel (W/sr).
+        #[serde(default)]
+        intensity: Option<Vec3>,
+        /// Total emitted power per channel (W).
+        #[serde(default)]
+        power: Option<Vec3>,
+        /// Half-angle in degrees within which the intensity is full, in [0, `outer_angle`]; default 0.
+        #[serde(default)]
+        inner_angle: f32,
+        /// Half-angle in degrees of the cone outside which nothing is emitted, in (0, 90]; default 45.
+        #[serde(default = "default_outer_angle")]
+        outer_angle: f32,
+    },
+    /// A directional light (the sun seen as a delta direction): light travelling along `direction`, giving
+    /// irradiance `irradiance` (W/m²) on a surface facing it.
+    Directional {
+        /// The direction the light travels (need not be unit length).
+        direction: Vec3,
+        /// Irradiance per channel on a surface perpendicular to the light (W/m²).
+        irradiance: Vec3,
+    },
+    /// Light arriving from infinitely far in every direction: a constant `radiance`, or an equirectangular
+    /// `image` (EXR, HDR, PNG, ...) times `scale`. Image column `u` and row `v` (from the top) are the direction
+    /// at polar angle `θ = π·v` from +y and azimuth `φ = π·(2u − 1)` from −z towards +x, turned by `rotate`
+    /// degrees about +y. At most one per scene; not in scenes with participating media.
+    Environment {
+        /// Constant radiance per channel (W·sr⁻¹·m⁻²), without `image`.
+        #[serde(default)]
+        radiance: Option<Vec3>,
+        /// An equirectangular image, relative to the scene file, without `radiance`.
+        #[serde(default)]
+        image: Option<PathBuf>,
+        /// Multiplies the image's values (finite, ≥ 0); default 1.
+        #[serde(default = "default_env_scale")]
+        scale: f32,
+        /// Rotation about +y in degrees; default 0.
+        #[serde(default)]
+        rotate: f32,
+    },
+}
+
+fn default_outer_angle() -> f32 {
+    45.0
+}
+
+fn default_env_scale() -> f32 {
+    1.0
 }
 
 /// A homogeneous participating medium as a scene writes it: the global `[medium]` table or an object's

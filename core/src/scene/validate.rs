@@ -8,6 +8,17 @@ use crate::geometry::shapes::Rect;
 use glam::Vec3;
 
 impl Scene {
+    /// Whether the scene has participating media: a global `medium`, an object's `interior`, or an
+    /// `interface` material.
+    pub fn has_media(&self) -> bool {
+        self.medium.is_some()
+            || self.materials.values().any(crate::material::Material::is_interface)
+            || self
+                .objects
+                .iter()
+                .any(|o| matches!(o, Object::Sphere { interior: Some(_), .. } | Object::Mesh { interior: Some(_), .. }))
+    }
+
     /// Checks every value the types cannot: ranges, finiteness, names that must exist. The first error
     /// found, in the order camera, render, materials, objects, lights.
     pub(super) fn check(&self) -> Result<(), FieldError> {
@@ -19,9 +30,7 @@ impl Scene {
         for (i, o) in self.objects.iter().enumerate() {
             self.check_object(i, o)?;
         }
-        for (i, l) in self.lights.iter().enumerate() {
-            check_light(i, l)?;
-        }
+        check_lights(self)?;
         if let Some(m) = &self.medium {
             m.check().map_err(|e| e.within("medium"))?;
         }
@@ -258,18 +267,97 @@ impl RenderSettings {
     }
 }
 
+/// The lights: each one's fields ([`check_light`]), at most one environment, and no infinitely distant light
+/// (an environment or a directional light) in a scene with participating media, whose paths do not reach
+/// infinity.
+fn check_lights(scene: &Scene) -> Result<(), FieldError> {
+    let mut environment = None;
+    for (i, l) in scene.lights.iter().enumerate() {
+        check_light(i, l)?;
+        let infinite = matches!(l, LightSpec::Environment { .. } | LightSpec::Directional { .. });
+        if infinite && scene.has_media() {
+            return Err(FieldError::new(
+                format!("lights[{i}].type"),
+                "environment and directional lights are not supported in a scene with participating media \
+                 (a `medium`, an `interior` or an `interface` material)",
+            ));
+        }
+        if matches!(l, LightSpec::Environment { .. }) {
+            if let Some(first) = environment {
+                return Err(FieldError::new(
+                    format!("lights[{i}].type"),
+                    format!("a scene has at most one environment; lights[{first}] is one already"),
+                ));
+            }
+            environment = Some(i);
+        }
+    }
+    Ok(())
+}
+
+/// Exactly one of a light's `intensity` and `power`, finite and non-negative.
+fn check_intensity(
+    f: &dyn Fn(&str) -> String,
+    intensity: &Option<Vec3>,
+    power: &Option<Vec3>,
+) -> Result<(), FieldError> {
+    let (name, v) = match (intensity, power) {
+        (Some(i), None) => ("intensity", *i),
+        (None, Some(p)) => ("power", *p),
+        _ => return Err(FieldError::new(f("intensity"), "give exactly one of `intensity` and `power`")),
+    };
+    non_negative3(&f(name), v)
+}
+
+fn non_negative3(field: &str, v: Vec3) -> Result<(), FieldError> {
+    if !v.is_finite() || v.min_element() < 0.0 {
+        return Err(FieldError::new(field, format!("expected finite non-negative values, found {v}")));
+    }
+    Ok(())
+}
+
 fn check_light(i: usize, l: &LightSpec) -> Result<(), FieldError> {
     let f = |s: &str| format!("lights[{i}].{s}");
     match l {
         LightSpec::Point { position, intensity, power } => {
             finite3(&f("position"), *position)?;
-            let (name, v) = match (intensity, power) {
-                (Some(i), None) => ("intensity", *i),
-                (None, Some(p)) => ("power", *p),
-                _ => return Err(FieldError::new(f("intensity"), "give exactly one of `intensity` and `power`")),
-            };
-            if !v.is_finite() || v.min_element() < 0.0 {
-                return Err(FieldError::new(f(name), format!("expected finite non-negative values, found {v}")));
+            check_intensity(&f, intensity, power)?;
+        }
+        LightSpec::Spot { position, direction, intensity, power, inner_angle, outer_angle } => {
+            finite3(&f("position"), *position)?;
+            nonzero3(&f("direction"), *direction)?;
+            check_intensity(&f, intensity, power)?;
+            if !(*outer_angle > 0.0 && *outer_angle <= 90.0) {
+                return Err(FieldError::new(
+                    f("outer_angle"),
+                    format!("expected degrees in (0, 90], found {outer_angle}"),
+                ));
+            }
+            if !(*inner_angle >= 0.0 && inner_angle <= outer_angle) {
+                return Err(FieldError::new(
+                    f("inner_angle"),
+                    format!("expected degrees in [0, outer_angle = {outer_angle}], found {inner_angle}"),
+                ));
+            }
+        }
+        LightSpec::Directional { direction, irradiance } => {
+            nonzero3(&f("direction"), *direction)?;
+            non_negative3(&f("irradiance"), *irradiance)?;
+        }
+        LightSpec::Environment { radiance, image, scale, rotate } => {
+            match (radiance, image) {
+                (Some(r), None) => non_negative3(&f("radiance"), *r)?,
+                (None, Some(_)) => {}
+                _ => return Err(FieldError::new(f("radiance"), "give exactly one of `radiance` and `image`")),
+            }
+            if !(scale.is_finite() && *scale >= 0.0) {
+                return Err(FieldError::new(f("scale"), format!("expected a finite number ≥ 0, found {scale}")));
+            }
+            if radiance.is_some() && *scale != 1.0 {
+                return Err(FieldError::new(f("scale"), "`scale` goes with `image`; with `radiance` leave it out"));
+            }
+            if !rotate.is_finite() {
+                return Err(FieldError::new(f("rotate"), format!("expected degrees, found {rotate}")));
             }
         }
     }

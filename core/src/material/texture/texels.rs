@@ -181,7 +181,7 @@ pub fn decode_file(path: &Path, limit: u64) -> Result<TexelImage, TextureError> 
     decode(&bytes, limit)
 }
 
-/// Decodes image bytes (PNG, JPEG, OpenEXR, BMP or PNM, told by their content) into texels: grey images keep
+/// Decodes image bytes (PNG, JPEG, OpenEXR, Radiance HDR, BMP or PNM, told by their content) into texels: grey images keep
 /// one channel, others keep red, green and blue (alpha is dropped); 8- and 16-bit values stay integers (their
 /// colour space is the texture's business), float values stay floats.
 pub fn decode(bytes: &[u8], limit: u64) -> Result<TexelImage, TextureError> {
@@ -192,7 +192,7 @@ pub fn decode(bytes: &[u8], limit: u64) -> Result<TexelImage, TextureError> {
         .with_guessed_format()
         .map_err(|e| TextureError::Decode(e.to_string()))?;
     if reader.format().is_none() {
-        return Err(TextureError::Decode("not a PNG, JPEG, OpenEXR, BMP or PNM image".into()));
+        return Err(TextureError::Decode("not a PNG, JPEG, OpenEXR, Radiance HDR, BMP or PNM image".into()));
     }
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(MAX_TEXTURE_SIDE);

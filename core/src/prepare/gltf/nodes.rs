@@ -92,17 +92,20 @@ fn light(im: &mut Import<'_>, l: &gltf::khr_lights_punctual::Light<'_>, world: &
     }
     match l.kind() {
         gltf::khr_lights_punctual::Kind::Point => {
-            Some(LightSpec::Point { position, intensity: Some(intensity), power: None })
+            Some(LightSpec::Point { position, intensity: Some(intensity.max(Vec3::ZERO)), power: None })
         }
         gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle, outer_cone_angle } => {
             spot_light(im, position, direction, intensity, inner_cone_angle, outer_cone_angle)
         }
-        gltf::khr_lights_punctual::Kind::Directional => directional_light(im, direction, intensity),
+        gltf::khr_lights_punctual::Kind::Directional => directional_light(direction, intensity),
     }
 }
 
-/// A spot light at `position` shining along `direction` with `intensity` (W/sr) on its axis, full inside
-/// `inner` and zero outside `outer` (radians).
+/// A spot light at `position` shining along `direction` with `intensity` (W/sr) on its axis, full within
+/// `inner` of the axis and zero beyond `outer` (radians, glTF's `innerConeAngle` and `outerConeAngle`), falling
+/// off between as photon's spot lights do (a smoothstep in the cosine; glTF suggests a squared linear ramp in
+/// the cosine, which differs by a few per cent inside the ramp). Angles outside `0 ≤ inner < outer ≤ π/2` are
+/// clamped into it, with a warning.
 fn spot_light(
     im: &mut Import<'_>,
     position: Vec3,
@@ -111,16 +114,24 @@ fn spot_light(
     inner: f32,
     outer: f32,
 ) -> Option<LightSpec> {
-    let _ = (position, direction, intensity, inner, outer);
-    im.warn("KHR_lights_punctual spot lights are not yet supported: they are ignored");
-    None
+    let outer_deg = if outer.is_finite() { outer.to_degrees().clamp(1e-3, 90.0) } else { 45.0 };
+    let inner_deg = if inner.is_finite() { inner.to_degrees().clamp(0.0, outer_deg) } else { 0.0 };
+    if outer_deg != outer.to_degrees() || inner_deg != inner.to_degrees() {
+        im.warn("KHR_lights_punctual spot cone angles outside 0 ≤ inner < outer ≤ π/2 are clamped into that range");
+    }
+    Some(LightSpec::Spot {
+        position,
+        direction,
+        intensity: Some(intensity.max(Vec3::ZERO)),
+        power: None,
+        inner_angle: inner_deg,
+        outer_angle: outer_deg,
+    })
 }
 
 /// A directional light travelling along `direction` with `irradiance` (W/m²) on a surface facing it.
-fn directional_light(im: &mut Import<'_>, direction: Vec3, irradiance: Vec3) -> Option<LightSpec> {
-    let _ = (direction, irradiance);
-    im.warn("KHR_lights_punctual directional lights are not yet supported: they are ignored");
-    None
+fn directional_light(direction: Vec3, irradiance: Vec3) -> Option<LightSpec> {
+    Some(LightSpec::Directional { direction, irradiance: irradiance.max(Vec3::ZERO) })
 }
 
 /// Checks that `accessor` holds `dims` of one of `types`; `what` names it in the error.
