@@ -1,5 +1,6 @@
 //! `photon-coordinator render model.glb` renders a glTF directly: the shipped showcase at a size given on the
-//! command line, with its own camera and lights, each warning about what it does not support printed once.
+//! command line, with its own camera and lights, each warning about what it does not support printed once; and
+//! the shipped glTF scene through two `--local` workers gives the in-process bits (path and vcm).
 #![allow(clippy::unwrap_used)]
 
 use photon_tests::{coordinator, run_with_timeout, scenes_dir, temp_dir};
@@ -24,6 +25,31 @@ fn a_glb_renders_directly() {
     for w in &warnings {
         let text = w.split("showcase.glb: ").nth(1).unwrap_or(w);
         assert_eq!(warnings.iter().filter(|x| x.ends_with(text)).count(), 1, "printed more than once: {w}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The pixels of an EXR, as bits.
+fn bits(path: &std::path::Path) -> Vec<u32> {
+    photon_core::image_io::Image::read(path).unwrap().pixels.iter().map(|v| v.to_bits()).collect()
+}
+
+#[test]
+fn the_gltf_scene_renders_the_same_bits_through_two_local_workers() {
+    let dir = temp_dir("gltf-render", "farm");
+    for method in ["path", "vcm"] {
+        let render = |name: &str, extra: &[&str]| {
+            let out = dir.join(format!("{method}-{name}.exr"));
+            let mut cmd = Command::new(coordinator());
+            cmd.arg("render").arg(scenes_dir().join("gltf-showcase.toml")).arg("-o").arg(&out).arg("-q");
+            cmd.args(["--size", "48x32", "--spp", "4", "--passes", "4", "--integrator", method, "--no-cache"]);
+            let o = run_with_timeout(cmd.args(extra), Duration::from_secs(240));
+            assert!(o.status.success(), "{method} {name}: {}", String::from_utf8_lossy(&o.stderr));
+            bits(&out)
+        };
+        let in_process = render("in-process", &[]);
+        assert!(in_process.iter().any(|&v| f32::from_bits(v) > 0.0), "{method}: black");
+        assert!(render("local", &["--local", "2"]) == in_process, "{method}: --local 2 changed pixels");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
