@@ -273,9 +273,10 @@ enum LobesBinary {
     Mirror(Texture),
     Dielectric(f32, Texture, f32),
     Conductor(Option<Texture>, Option<Texture>, Option<Texture>, f32),
-    MetallicRoughness(Texture, f32, f32, Option<Texture>),
     Mix(Texture, f32, f32, f32, f32),
     Interface,
+    // Last, so that the variants before it keep their binary tags.
+    MetallicRoughness(Texture, f32, f32, Option<Texture>),
 }
 
 #[derive(Serialize, Deserialize)]
