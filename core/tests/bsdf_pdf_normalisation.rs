@@ -1,7 +1,8 @@
 //! Claim: `Bsdf::pdf` integrates over the sphere to the probability that `Bsdf::sample` returns a non-delta
 //! direction: 1 for Lambert, 1 for Phong less what its glossy lobe puts below the horizon (nothing at normal
 //! incidence), `diffuse / (diffuse + specular + transmission)` for Mix, 0 for mirrors and glass (smooth metal
-//! too), and for rough metal and glass 1 less what their visible facets reflect below the horizon.
+//! too), and for rough metal and glass 1 less what their visible facets reflect below the horizon; for glTF's
+//! metallic–roughness model with a smooth lobe, its diffuse base's share (1 − the mirror's probability).
 //!
 //! The integral is a midpoint quadrature over (θ, φ) whose error is bounded by the change on halving the grid;
 //! the probability is the fraction of 200 000 samples, within 5 binomial standard errors.
@@ -11,6 +12,7 @@ mod common;
 use common::{dir, every_kind, flat, integrate_whole_sphere, sampler};
 use photon_core::Rgb;
 use photon_core::material::bsdf::{Bxdf, TransportMode};
+use photon_core::material::metallic_roughness;
 
 const SAMPLES: usize = 200_000;
 
@@ -48,6 +50,11 @@ fn pdf_integrates_to_the_non_delta_share() {
                     Bxdf::Conductor { alpha: 0.0, .. } => Some(0.0),
                     // Visible normals reflect below the horizon now and then: the share is below 1.
                     Bxdf::Conductor { .. } | Bxdf::RoughDielectric { .. } => None,
+                    // The smooth glTF model: its diffuse base's share, 1 − the mirror's probability.
+                    Bxdf::MetallicRoughness { base, metallic, alpha: 0.0 } => {
+                        Some(f64::from(1.0 - metallic_roughness::specular_probability(base, metallic, wo)))
+                    }
+                    Bxdf::MetallicRoughness { .. } => None,
                     Bxdf::Mix { diffuse, specular, transmission, .. } => {
                         Some(f64::from(diffuse / (diffuse + specular + transmission)))
                     }

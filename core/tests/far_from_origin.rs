@@ -61,7 +61,7 @@ fn mapped(mut scene: Scene, at: impl Fn(Vec3) -> Vec3, len: impl Fn(f32) -> f32,
                 u.iter_mut().chain(v.iter_mut()).for_each(|e| *e = e.map(&len));
             }
             Object::Triangle { vertices, .. } => vertices.iter_mut().for_each(at),
-            Object::Mesh { transform, .. } => {
+            Object::Mesh { transform, .. } | Object::Gltf { transform, .. } => {
                 let mut o = Vec3::ZERO;
                 at(&mut o);
                 transform.translate += o;

@@ -55,6 +55,14 @@ pub enum MeshError {
         /// What is wrong, and where in the body: the element and its index (from 0, as faces count vertices).
         message: String,
     },
+    /// The file is not a valid glTF 2.0 file, or its data are not what its accessors promise.
+    #[error("{file}: malformed glTF: {message}")]
+    MalformedGltf {
+        /// The glTF file.
+        file: PathBuf,
+        /// What is wrong, naming the glTF field (`meshes[0].primitives[1].indices`) where there is one.
+        message: String,
+    },
     /// The file name ends in neither `.obj` nor `.ply`, so its format is not known.
     #[error("{file}: unknown mesh format: the file name must end in `.obj` (Wavefront OBJ) or `.ply` (PLY)")]
     UnknownFormat {

@@ -35,6 +35,7 @@
 //!   geometric and the shading normal to scatter (a reflection on one side of both, a refraction across both):
 //!   a rough lobe has no symmetric way to reach the pairs they disagree on, so those carry no light.
 
+use super::metallic_roughness as mr;
 use super::microfacet::{self, ConductorFresnel, SMOOTH_ALPHA, TrowbridgeReitz};
 use crate::Rgb;
 use crate::math::fmath;
@@ -100,6 +101,18 @@ pub enum Bxdf {
         tint: Rgb,
         /// The distribution's width `α = roughness²`, at least [`SMOOTH_ALPHA`] (smooth glass is
         /// [`Bxdf::Dielectric`]).
+        alpha: f32,
+    },
+    /// The glTF 2.0 metallic–roughness model (specification appendix B, [`super::metallic_roughness`]): a
+    /// Trowbridge–Reitz lobe with Schlick's Fresnel of `F0 = mix(0.04, base, metallic)` over a diffuse base
+    /// `(1 − metallic)·(1 − F_0.04(wo·h))·base/π`; for `alpha` below [`SMOOTH_ALPHA`] the lobe is a delta mirror.
+    /// Reflects on both sides.
+    MetallicRoughness {
+        /// Base colour: the metal's `F0` and the diffuse base's reflectance.
+        base: Rgb,
+        /// Metalness in `[0, 1]`.
+        metallic: f32,
+        /// The distribution's width `α = roughness²`.
         alpha: f32,
     },
     /// The origin's mixture `diffuse·Lambert(color) + specular·mirror + transmission·glass(eta)`; the weights
@@ -283,6 +296,7 @@ impl Bsdf {
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => 0.0,
             Bxdf::Conductor { alpha, .. } if alpha < SMOOTH_ALPHA => 0.0,
             Bxdf::Conductor { alpha, .. } => microfacet::conductor_pdf(&TrowbridgeReitz { alpha }, wo, wi),
+            Bxdf::MetallicRoughness { base, metallic, alpha } => mr::pdf(base, metallic, alpha, wo, wi),
             // Handled above.
             Bxdf::RoughDielectric { .. } => 0.0,
             Bxdf::Mix { diffuse, specular, transmission, .. } => {
@@ -334,6 +348,19 @@ impl Bsdf {
                     delta: false,
                     eta: 1.0,
                 })
+            }
+            Bxdf::MetallicRoughness { base, metallic, alpha } => {
+                let p_spec = mr::specular_probability(base, metallic, wo_l);
+                if u >= p_spec {
+                    return self.sample_non_delta(wo, self.sample_shading_cosine(u2, up));
+                }
+                let fresnel = mr::fresnel(base, metallic);
+                if alpha < SMOOTH_ALPHA {
+                    return self.sample_mirror(wo, wo_l, fresnel.eval(wo_l.z), p_spec);
+                }
+                // The lobe's direction; its value and density are the whole mixture's.
+                let s = microfacet::conductor_sample(&TrowbridgeReitz { alpha }, &fresnel, wo_l, u2)?;
+                self.sample_non_delta(wo, s.wi)
             }
             Bxdf::RoughDielectric { eta, tint, alpha } => {
                 let radiance = mode == TransportMode::Radiance;
@@ -387,6 +414,7 @@ impl Bsdf {
             // The Fresnel reflectance at the view angle: exact for the mirror, an upper bound for a rough
             // lobe, which loses what its facets shadow and what falls below the horizon.
             Bxdf::Conductor { fresnel, .. } => fresnel.eval(self.frame.to_local(wo).z),
+            Bxdf::MetallicRoughness { base, metallic, .. } => mr::albedo(base, metallic, self.frame.to_local(wo)),
             Bxdf::Mix { color, diffuse, specular, transmission, .. } => {
                 (diffuse * color + Rgb::splat(specular + transmission)).min(Rgb::ONE)
             }
@@ -426,6 +454,7 @@ impl Bsdf {
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => Rgb::ZERO,
             Bxdf::Conductor { alpha, .. } if alpha < SMOOTH_ALPHA => Rgb::ZERO,
             Bxdf::Conductor { fresnel, alpha } => microfacet::conductor_f(&TrowbridgeReitz { alpha }, &fresnel, wo, wi),
+            Bxdf::MetallicRoughness { base, metallic, alpha } => mr::f(base, metallic, alpha, wo, wi),
             // Evaluated by `f` itself: it both reflects and transmits.
             Bxdf::RoughDielectric { .. } => Rgb::ZERO,
             Bxdf::Mix { color, diffuse, .. } => color * (diffuse * FRAC_1_PI),
@@ -546,6 +575,7 @@ impl Bxdf {
             Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::RoughDielectric { .. } => true,
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => false,
             Bxdf::Conductor { alpha, .. } => alpha >= SMOOTH_ALPHA,
+            Bxdf::MetallicRoughness { metallic, alpha, .. } => metallic < 1.0 || alpha >= SMOOTH_ALPHA,
             Bxdf::Mix { diffuse, .. } => diffuse > 0.0,
         }
     }
@@ -563,6 +593,9 @@ impl Bxdf {
             Bxdf::Phong { kd, exponent, .. } if luminance(kd) > 0.0 || exponent <= 0.0 => f32::INFINITY,
             Bxdf::Phong { exponent, .. } => (2.0 / (exponent + 2.0)).sqrt(),
             Bxdf::Conductor { alpha, .. } if alpha >= SMOOTH_ALPHA => alpha,
+            // The diffuse base is there unless the surface is all metal.
+            Bxdf::MetallicRoughness { metallic, .. } if metallic < 1.0 => f32::INFINITY,
+            Bxdf::MetallicRoughness { alpha, .. } if alpha >= SMOOTH_ALPHA => alpha,
             _ => 0.0,
         }
     }
@@ -572,7 +605,7 @@ impl Bxdf {
         match *self {
             Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::RoughDielectric { .. } => false,
             Bxdf::Mirror { .. } | Bxdf::Dielectric { .. } => true,
-            Bxdf::Conductor { alpha, .. } => alpha < SMOOTH_ALPHA,
+            Bxdf::Conductor { alpha, .. } | Bxdf::MetallicRoughness { alpha, .. } => alpha < SMOOTH_ALPHA,
             Bxdf::Mix { specular, transmission, .. } => specular > 0.0 || transmission > 0.0,
         }
     }

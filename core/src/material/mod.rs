@@ -87,6 +87,7 @@
 //! under the material's path.
 
 pub mod bsdf;
+pub mod metallic_roughness;
 pub mod microfacet;
 pub mod texture;
 
@@ -204,6 +205,33 @@ pub enum Material {
         #[serde(default = "default_true", skip_serializing_if = "is_true")]
         two_sided: bool,
     },
+    /// glTF's metallic–roughness model ([`metallic_roughness`]): a metal and a dielectric-coated diffuse base,
+    /// mixed by metalness.
+    MetallicRoughness {
+        /// Base colour (default 1): the metal's reflectance at normal incidence, the base's diffuse colour.
+        #[serde(default = "default_one")]
+        base_color: Texture,
+        /// Metalness factor in [0, 1] (default 1, glTF's default).
+        #[serde(default = "default_one_f32")]
+        metallic: f32,
+        /// Perceptual roughness factor in [0, 1] (default 1, glTF's default); `α = r²`.
+        #[serde(default = "default_one_f32")]
+        roughness: f32,
+        /// glTF's metallic-roughness image (default none): its blue channel multiplies `metallic`, its green
+        /// channel `roughness`, texel by texel; integer texels are linear unless `colorspace` says otherwise.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        metallic_roughness: Option<Texture>,
+        /// Bump map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        bump: Option<BumpMap>,
+        /// Tangent-space normal map (default none).
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        normal_map: Option<NormalMap>,
+        /// Whether the surface reflects on both sides (default true); a one-sided surface is black seen from
+        /// behind (the side its geometric normal points away from) and absorbs the light that arrives there.
+        #[serde(default = "default_true", skip_serializing_if = "is_true")]
+        two_sided: bool,
+    },
     /// The original renderer's mixture of diffuse, mirror and glass; the rest of the weight is absorbed.
     Mix {
         /// Colour of the diffuse part (default 0.8).
@@ -241,6 +269,7 @@ enum LobesBinary {
     Mirror(Texture),
     Dielectric(f32, Texture, f32),
     Conductor(Option<Texture>, Option<Texture>, Option<Texture>, f32),
+    MetallicRoughness(Texture, f32, f32, Option<Texture>),
     Mix(Texture, f32, f32, f32, f32),
     Interface,
 }
@@ -261,6 +290,9 @@ impl Serialize for Material {
             Material::Mirror { reflectance, .. } => LobesBinary::Mirror(reflectance),
             Material::Dielectric { eta, tint, roughness, .. } => LobesBinary::Dielectric(eta, tint, roughness),
             Material::Conductor { eta, k, color, roughness, .. } => LobesBinary::Conductor(eta, k, color, roughness),
+            Material::MetallicRoughness { base_color, metallic, roughness, metallic_roughness, .. } => {
+                LobesBinary::MetallicRoughness(base_color, metallic, roughness, metallic_roughness)
+            }
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 LobesBinary::Mix(color, diffuse, specular, transmission, eta)
             }
@@ -287,6 +319,17 @@ impl<'de> Deserialize<'de> for Material {
             }
             LobesBinary::Conductor(eta, k, color, roughness) => {
                 Material::Conductor { eta, k, color, roughness, bump, normal_map, two_sided }
+            }
+            LobesBinary::MetallicRoughness(base_color, metallic, roughness, metallic_roughness) => {
+                Material::MetallicRoughness {
+                    base_color,
+                    metallic,
+                    roughness,
+                    metallic_roughness,
+                    bump,
+                    normal_map,
+                    two_sided,
+                }
             }
             LobesBinary::Mix(color, diffuse, specular, transmission, eta) => {
                 Material::Mix { color, diffuse, specular, transmission, eta, bump, normal_map }
@@ -318,6 +361,10 @@ fn default_conductor_roughness() -> f32 {
 
 fn default_one() -> Texture {
     Texture::grey(1.0)
+}
+
+fn default_one_f32() -> f32 {
+    1.0
 }
 
 fn default_phong_diffuse() -> Texture {
@@ -403,6 +450,14 @@ impl Material {
                 validate_roughness(*roughness)?;
                 validate_conductor_fresnel(eta.as_ref(), k.as_ref(), color.as_ref())
             }
+            Material::MetallicRoughness { base_color, metallic, roughness, metallic_roughness, .. } => {
+                base_color.validate_reflectance("base_color")?;
+                validate_roughness(*roughness)?;
+                if !(metallic.is_finite() && (0.0..=1.0).contains(metallic)) {
+                    return Err(FieldError::new("metallic", format!("expected a number from 0 to 1, got {metallic}")));
+                }
+                metallic_roughness.as_ref().map_or(Ok(()), |t| t.validate_reflectance("metallic_roughness"))
+            }
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => {
                 color.validate_reflectance("color")?;
                 for (name, w) in [("diffuse", diffuse), ("specular", specular), ("transmission", transmission)] {
@@ -434,6 +489,7 @@ impl Material {
             | Material::Mirror { bump, .. }
             | Material::Dielectric { bump, .. }
             | Material::Conductor { bump, .. }
+            | Material::MetallicRoughness { bump, .. }
             | Material::Mix { bump, .. } => bump.as_ref(),
             Material::Interface {} => None,
         }
@@ -447,6 +503,7 @@ impl Material {
             | Material::Mirror { normal_map, .. }
             | Material::Dielectric { normal_map, .. }
             | Material::Conductor { normal_map, .. }
+            | Material::MetallicRoughness { normal_map, .. }
             | Material::Mix { normal_map, .. } => normal_map.as_ref(),
             Material::Interface {} => None,
         }
@@ -463,6 +520,11 @@ impl Material {
                 .into_iter()
                 .filter_map(|(n, t)| Some((n, t.as_ref()?)))
                 .collect(),
+            Material::MetallicRoughness { base_color, metallic_roughness, .. } => {
+                let mut out = vec![("base_color", base_color)];
+                out.extend(metallic_roughness.as_ref().map(|t| ("metallic_roughness", t)));
+                out
+            }
             Material::Mix { color, .. } => vec![("color", color)],
             Material::Interface {} => Vec::new(),
         }
@@ -492,6 +554,11 @@ impl Material {
             Material::Conductor { eta, k, color, bump, normal_map, .. } => {
                 let colors = [("eta", eta), ("k", k), ("color", color)];
                 (colors.into_iter().filter_map(|(n, t)| Some((n, t.as_mut()?))).collect(), bump, normal_map)
+            }
+            Material::MetallicRoughness { base_color, metallic_roughness, bump, normal_map, .. } => {
+                let mut colors = vec![("base_color", base_color)];
+                colors.extend(metallic_roughness.as_mut().map(|t| ("metallic_roughness", t)));
+                (colors, bump, normal_map)
             }
             Material::Mix { color, bump, normal_map, .. } => (vec![("color", color)], bump, normal_map),
             Material::Interface {} => return Vec::new(),
@@ -556,6 +623,16 @@ impl Material {
                 };
                 Bxdf::Conductor { fresnel, alpha: roughness * roughness }
             }
+            Material::MetallicRoughness { base_color, metallic, roughness, metallic_roughness, .. } => {
+                // Blue is metalness and green roughness (glTF 2.0, `metallicRoughnessTexture`), linear values.
+                let map = metallic_roughness.as_ref().map_or(crate::Rgb::ONE, |t| eval_linear(t, uv, p, images));
+                let roughness = roughness * map.y;
+                Bxdf::MetallicRoughness {
+                    base: eval(base_color),
+                    metallic: (metallic * map.z).clamp(0.0, 1.0),
+                    alpha: roughness * roughness,
+                }
+            }
             Material::Mix { color, diffuse, specular, transmission, eta, .. } => Bxdf::Mix {
                 color: eval(color),
                 diffuse: *diffuse,
@@ -577,7 +654,8 @@ impl Material {
             Material::Lambert { two_sided, .. }
             | Material::Phong { two_sided, .. }
             | Material::Mirror { two_sided, .. }
-            | Material::Conductor { two_sided, .. } => *two_sided,
+            | Material::Conductor { two_sided, .. }
+            | Material::MetallicRoughness { two_sided, .. } => *two_sided,
             Material::Dielectric { .. } | Material::Mix { .. } | Material::Interface {} => true,
         }
     }
@@ -590,6 +668,8 @@ impl Material {
             // Rough conductors and glass too: the photon methods walk through their narrower lobes as through a
             // mirror (`photons.min_roughness`), so light that reaches a diffuse surface through them is caustic.
             Material::Mirror { .. } | Material::Dielectric { .. } | Material::Conductor { .. } => true,
+            // Its specular lobe, however rough, is walked through where it is narrower than the threshold.
+            Material::MetallicRoughness { .. } => true,
             Material::Mix { specular, transmission, .. } => *specular > 0.0 || *transmission > 0.0,
         }
     }
@@ -609,6 +689,10 @@ impl Material {
                 roughness * roughness >= SMOOTH_ALPHA
             }
             Material::Mirror { .. } | Material::Interface {} => false,
+            // The diffuse base, unless the metalness is 1 everywhere, or the rough lobe.
+            Material::MetallicRoughness { metallic, roughness, metallic_roughness, .. } => {
+                *metallic < 1.0 || metallic_roughness.is_some() || roughness * roughness >= SMOOTH_ALPHA
+            }
             Material::Mix { diffuse, .. } => *diffuse > 0.0,
         }
     }
@@ -619,10 +703,23 @@ impl Material {
             Material::Lambert { .. }
             | Material::Phong { .. }
             | Material::Mirror { .. }
-            | Material::Conductor { .. } => false,
+            | Material::Conductor { .. }
+            | Material::MetallicRoughness { .. } => false,
             Material::Dielectric { .. } | Material::Interface {} => true,
             Material::Mix { transmission, .. } => *transmission > 0.0,
         }
+    }
+}
+
+/// `t` at `uv`, its integer image texels read as linear values unless its `colorspace` says otherwise (data,
+/// not colour: glTF's metallic-roughness image).
+fn eval_linear(t: &Texture, uv: glam::Vec2, p: glam::Vec3A, images: &[TexelImage]) -> crate::Rgb {
+    match t {
+        Texture::Image(r) => match images.get(r.slot as usize) {
+            Some(img) => r.lookup(img, uv, r.colorspace.unwrap_or(texture::ColorSpace::Linear)).min(crate::Rgb::ONE),
+            None => crate::Rgb::ZERO,
+        },
+        t => t.eval(uv, p, images),
     }
 }
 

@@ -6,6 +6,7 @@
 
 pub mod blobs;
 pub mod budget;
+pub mod gltf;
 pub mod lod;
 pub mod photons;
 pub mod textures;
@@ -62,10 +63,13 @@ impl Prepared {
     /// scene; `scene_path` names the scene in errors. Photon maps are a separate step
     /// ([`Prepared::with_photon_maps`]): `photons` is `None` here.
     pub fn new(scene: &Scene, scene_path: &std::path::Path) -> Result<Self, SceneError> {
-        let (materials, images, env_slot) = textures::load(scene, scene_path)?;
-        let (mut geometry, emitters, boundaries) = geometry(scene, scene_path)?;
+        let mut imported = gltf::import_all(scene, scene_path)?;
+        let (materials, images, env_slot) = textures::load_with(scene, scene_path, &mut imported)?;
+        let (mut geometry, emitters, boundaries) = geometry(scene, scene_path, &imported)?;
         check_photon_radius(scene, &geometry, scene_path)?;
-        let lights = lights(scene, &mut geometry, &emitters, &images, env_slot);
+        let specs: Vec<LightSpec> =
+            scene.lights.iter().chain(imported.iter().flatten().flat_map(|i| i.lights.iter())).cloned().collect();
+        let lights = lights(&specs, &mut geometry, &emitters, &images, env_slot);
         let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
         if media.is_some() && scene.render.integrator.warns_in_media() {
             tracing::warn!(
@@ -234,7 +238,11 @@ type GeometryParts = (Geometry, Vec<Emission>, Option<Vec<Boundary>>);
 /// (each primitive's `light` holds that index until [`lights`] renumbers it), and when the scene has media,
 /// each object's [`Boundary`]: spheres and closed meshes are closed (an `interior` on an open mesh is an
 /// error that names the field), everything else open.
-fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts, SceneError> {
+fn geometry(
+    scene: &Scene,
+    scene_path: &std::path::Path,
+    imported: &[Option<gltf::Imported>],
+) -> Result<GeometryParts, SceneError> {
     let with_media = scene.has_media();
     let mut boundaries: Vec<Boundary> = Vec::new();
     let mut prims: Vec<Primitive> = Vec::new();
@@ -243,13 +251,24 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
     // Emission of each light-carrying primitive, by light index, before the BVH reorders primitives.
     let mut emitters: Vec<Emission> = Vec::new();
     let lods = lod::plan(scene);
+    // glTF objects' materials follow the scene's, object by object (`textures::load_with`).
+    let mut gltf_materials = scene.materials.len() as u32;
     for (i, o) in scene.objects.iter().enumerate() {
         let object = i as u32;
-        let material = scene.materials.keys().position(|n| n == o.material()).ok_or_else(|| SceneError::Invalid {
+        if let Some(imp) = imported.get(i).and_then(Option::as_ref) {
+            gltf_object(imp, object, gltf_materials, &mut prims, &mut meshes, &mut emitters);
+            gltf_materials += imp.materials.len() as u32;
+            if with_media {
+                boundaries.push(Boundary::Open);
+            }
+            continue;
+        }
+        let name = o.material().unwrap_or_default();
+        let material = scene.materials.keys().position(|n| n == name).ok_or_else(|| SceneError::Invalid {
             path: scene_path.into(),
             line: None,
             field: format!("objects[{i}].material"),
-            message: format!("no material named `{}`", o.material()),
+            message: format!("no material named `{name}`"),
         })? as u32;
         let mut push = |shape: Shape, emission: &Option<Emission>| {
             let light = match emission {
@@ -310,12 +329,45 @@ fn geometry(scene: &Scene, scene_path: &std::path::Path) -> Result<GeometryParts
                 }
                 meshes.push(mesh.shading);
             }
+            // Expanded above, from its import.
+            Object::Gltf { .. } => {}
         }
         if with_media {
             boundaries.push(boundary);
         }
     }
     Ok((Geometry::new(prims, planes, meshes), emitters, with_media.then_some(boundaries)))
+}
+
+/// The primitives of a glTF object: each imported mesh's triangles with its material (`material_base` plus its
+/// index in the import) and, where it emits, its triangle's emission.
+fn gltf_object(
+    imp: &gltf::Imported,
+    object: u32,
+    material_base: u32,
+    prims: &mut Vec<Primitive>,
+    meshes: &mut Vec<MeshShading>,
+    emitters: &mut Vec<Emission>,
+) {
+    for m in &imp.meshes {
+        let mesh_index = meshes.len() as u32;
+        let material = material_base + m.material;
+        for (face, t) in m.mesh.triangles.iter().enumerate() {
+            let tri = Triangle { p: *t, mesh: mesh_index, face: face as u32 };
+            if tri.area() <= 0.0 {
+                continue;
+            }
+            let light = match m.emission.get(face) {
+                Some(e) if e.max_element() > 0.0 => {
+                    emitters.push(Emission { radiance: (*e).into(), two_sided: m.two_sided_emission });
+                    (emitters.len() - 1) as u32
+                }
+                _ => NONE,
+            };
+            prims.push(Primitive { shape: Shape::Triangle(tri), material, light, object });
+        }
+        meshes.push(m.mesh.shading.clone());
+    }
 }
 
 /// Object `i`, a mesh: its triangles loaded from its file at the level of detail `plan` gives, and when the scene
@@ -346,14 +398,14 @@ fn mesh_object(
     let mesh = crate::geometry::mesh_file::load_mesh(&path, &transform.matrix(), normals, limit)
         .map_err(|source| SceneError::Mesh { path: scene_path.into(), field: format!("objects[{i}].file"), source })?;
     if mesh.shading.uv_indices.is_empty()
-        && let Some(m) = scene.materials.get(o.material())
+        && let Some(m) = o.material().and_then(|name| scene.materials.get(name))
         && m.needs_uv()
     {
         let message = format!(
             "{} has no texture coordinates (an OBJ's `vt` lines, a PLY's `u`/`v` properties), which material `{}` \
              needs for its textures",
             path.display(),
-            o.material()
+            o.material().unwrap_or_default()
         );
         return Err(invalid("file", message));
     }
@@ -406,10 +458,11 @@ fn level_of_detail(
 }
 
 /// The lights: area lights in scene order (whatever order the BVH put their primitives in), then point, spot
-/// and directional lights in scene order, then the environment (with the distribution of its image, texture
-/// slot `env_slot` of `images`); each emitting primitive is pointed at its final light index.
+/// and directional lights in the order of `specs` (the scene's, then its glTF objects'), then the environment
+/// (with the distribution of its image, texture slot `env_slot` of `images`); each emitting primitive is
+/// pointed at its final light index.
 fn lights(
-    scene: &Scene,
+    specs: &[LightSpec],
     geometry: &mut Geometry,
     emitters: &[Emission],
     images: &[TexelImage],
@@ -436,7 +489,7 @@ fn lights(
     lights.extend(area_lights.into_iter().map(|(_, l)| l));
     let bounds = bounding_sphere(geometry);
     let mut sky = None;
-    for l in &scene.lights {
+    for l in specs {
         let intensity =
             |intensity: &Option<glam::Vec3>, power: &Option<glam::Vec3>, per_sr: f32| match (intensity, power) {
                 (Some(i), _) => Rgb::from(*i),
@@ -470,7 +523,7 @@ fn lights(
         };
         lights.push(light);
     }
-    for l in &scene.lights {
+    for l in specs {
         if let LightSpec::Environment { radiance, scale, rotate, .. } = l {
             let image = images.get(env_slot as usize);
             sky = image.map(SkyDistribution::new);

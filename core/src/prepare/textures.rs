@@ -4,8 +4,10 @@
 //! texels).
 //!
 //! Slots follow the materials in name order and, within a material, its colours in declaration order, then
-//! its bump or normal map, then the environment's image; a file read twice (the same path) has one slot. The order depends only on the scene
-//! text, so a scene blob from the cache and freshly decoded images always agree.
+//! its bump or normal map, then the environment's image; a file read twice (the same path) has one slot. The
+//! order depends only on the scene text, so a scene blob from the cache and freshly decoded images always agree.
+//! The images of glTF objects ([`super::gltf`]) follow, object by object, in the order their materials read
+//! them, after the scene's own materials and then each glTF object's materials.
 
 use crate::material::Material;
 use crate::material::texture::{TexelImage, decode_file};
@@ -55,6 +57,37 @@ pub fn environment_slot(scene: &Scene, files: &[(PathBuf, String)]) -> u32 {
 /// decoded, is empty, has a side of 0 or over [`crate::material::texture::MAX_TEXTURE_SIDE`], or decodes to
 /// more than `limits.texture_mib`; float texels that are negative or not finite.
 pub fn load(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>, u32), SceneError> {
+    load_with(scene, scene_path, &mut super::gltf::import_all(scene, scene_path)?)
+}
+
+/// [`load`] with the scene's glTF objects already imported: their materials follow the scene's, their image
+/// slots moved past the images before them, and their images (taken out of `imported`) follow the scene's.
+///
+/// # Errors
+/// As [`load`].
+pub fn load_with(
+    scene: &Scene,
+    scene_path: &Path,
+    imported: &mut [Option<super::gltf::Imported>],
+) -> Result<(Vec<Material>, Vec<TexelImage>, u32), SceneError> {
+    let (mut materials, mut images, env_slot) = load_scene_images(scene, scene_path)?;
+    for imp in imported.iter_mut().flatten() {
+        let offset = images.len() as u32;
+        for m in &imp.materials {
+            let mut m = m.clone();
+            for (_, r) in m.images_mut() {
+                r.slot = r.slot.saturating_add(offset);
+            }
+            materials.push(m);
+        }
+        images.append(&mut imp.images);
+    }
+    Ok((materials, images, env_slot))
+}
+
+/// The scene's own materials (name order) with their slots set, their images and the environment's, and the
+/// environment image's slot.
+fn load_scene_images(scene: &Scene, scene_path: &Path) -> Result<(Vec<Material>, Vec<TexelImage>, u32), SceneError> {
     let files = files(scene);
     let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
     let mut images = Vec::with_capacity(files.len());

@@ -76,7 +76,19 @@ impl Scene {
         if overrides.is_empty() {
             return Self::load(path);
         }
-        let text = read(path)?;
+        Self::parse_with(&read(path)?, path, overrides)
+    }
+
+    /// [`Scene::load_with`] for scene text already read (or made: a glTF rendered directly); `path` names the
+    /// scene in errors and gives the base folder.
+    ///
+    /// # Errors
+    /// As [`Scene::load_with`].
+    pub fn parse_with(text: &str, path: &Path, overrides: &[String]) -> Result<Scene, SceneError> {
+        if overrides.is_empty() {
+            return Self::parse(text, path);
+        }
+        let text = text.to_owned();
         let file: toml::Table =
             toml::from_str(&text).map_err(|e| SceneError::Parse { path: path.into(), message: e.to_string() })?;
         let settings = overrides.iter().map(|o| Setting::parse(o, path)).collect::<Result<Vec<_>, _>>()?;

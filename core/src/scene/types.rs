@@ -438,6 +438,17 @@ pub enum Object {
         #[serde(default)]
         interior: Option<MediumSpec>,
     },
+    /// A glTF 2.0 file (`.gltf` with its buffers and images, or `.glb`): its default scene's meshes with their
+    /// own materials, and its `KHR_lights_punctual` lights, placed by `transform` (after the file's node
+    /// transforms). Its cameras are used only when the file is rendered directly. See
+    /// [`crate::prepare::gltf`].
+    Gltf {
+        /// Path of the glTF file, relative to the scene file.
+        file: PathBuf,
+        /// Placement in the world, applied after the file's node hierarchy.
+        #[serde(default)]
+        transform: Transform,
+    },
 }
 
 fn default_smooth() -> bool {
@@ -453,14 +464,15 @@ fn default_crease_angle() -> f32 {
 }
 
 impl Object {
-    /// The material name.
-    pub fn material(&self) -> &str {
+    /// The material name; `None` for a glTF object, whose materials come from its file.
+    pub fn material(&self) -> Option<&str> {
         match self {
             Object::Sphere { material, .. }
             | Object::Plane { material, .. }
             | Object::Rect { material, .. }
             | Object::Triangle { material, .. }
-            | Object::Mesh { material, .. } => material,
+            | Object::Mesh { material, .. } => Some(material),
+            Object::Gltf { .. } => None,
         }
     }
 }

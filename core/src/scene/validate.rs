@@ -70,13 +70,15 @@ impl Scene {
 
     fn check_object(&self, i: usize, o: &Object) -> Result<(), FieldError> {
         let f = |s: &str| format!("objects[{i}].{s}");
-        if !self.materials.contains_key(o.material()) {
+        if let Some(material) = o.material()
+            && !self.materials.contains_key(material)
+        {
             let known: Vec<&str> = self.materials.keys().map(String::as_str).collect();
             return Err(FieldError::new(
                 f("material"),
                 format!(
                     "no material named `{}` (defined: {})",
-                    crate::input::excerpt(o.material()),
+                    crate::input::excerpt(material),
                     crate::input::excerpt(&known.join(", "))
                 ),
             ));
@@ -127,14 +129,18 @@ impl Scene {
                 check_transform(&f("transform"), transform)?;
                 emission
             }
+            Object::Gltf { transform, .. } => {
+                check_transform(&f("transform"), transform)?;
+                &None
+            }
         };
         if let Some(e) = emission {
-            if self.materials.get(o.material()).is_some_and(crate::material::Material::is_interface) {
+            if o.material().and_then(|m| self.materials.get(m)).is_some_and(crate::material::Material::is_interface) {
                 return Err(FieldError::new(
                     f("emission"),
                     format!(
                         "material `{}` is an interface, which has no surface to emit light from",
-                        crate::input::excerpt(o.material())
+                        crate::input::excerpt(o.material().unwrap_or_default())
                     ),
                 ));
             }

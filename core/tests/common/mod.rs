@@ -41,6 +41,13 @@ pub fn every_kind() -> Vec<(&'static str, Bxdf)> {
         ("smooth metal", Bxdf::Conductor { fresnel: schlick(), alpha: 0.0 }),
         ("rough glass r=0.3", Bxdf::RoughDielectric { eta: 1.5, tint: Rgb::new(1.0, 0.9, 0.7), alpha: 0.09 }),
         ("rough glass 2.4 r=0.8", Bxdf::RoughDielectric { eta: 2.4, tint: Rgb::ONE, alpha: 0.64 }),
+        ("gltf metal r=0.5", Bxdf::MetallicRoughness { base: Rgb::new(0.95, 0.64, 0.54), metallic: 1.0, alpha: 0.25 }),
+        ("gltf plastic r=0.3", Bxdf::MetallicRoughness { base: Rgb::new(0.8, 0.2, 0.1), metallic: 0.0, alpha: 0.09 }),
+        (
+            "gltf half metal r=0.8",
+            Bxdf::MetallicRoughness { base: Rgb::new(0.3, 0.9, 0.6), metallic: 0.5, alpha: 0.64 },
+        ),
+        ("gltf smooth plastic", Bxdf::MetallicRoughness { base: Rgb::new(0.2, 0.5, 0.9), metallic: 0.0, alpha: 0.0 }),
     ]
 }
 
@@ -58,7 +65,7 @@ pub fn schlick() -> ConductorFresnel {
 /// chain of f32 operations than the other lobes'.
 pub fn is_microfacet(b: &Bxdf) -> bool {
     match *b {
-        Bxdf::Conductor { alpha, .. } => alpha > 0.0,
+        Bxdf::Conductor { alpha, .. } | Bxdf::MetallicRoughness { alpha, .. } => alpha > 0.0,
         Bxdf::RoughDielectric { .. } => true,
         _ => false,
     }
@@ -69,7 +76,11 @@ pub fn transmits(b: &Bxdf) -> bool {
     match *b {
         Bxdf::Dielectric { .. } | Bxdf::RoughDielectric { .. } => true,
         Bxdf::Mix { transmission, .. } => transmission > 0.0,
-        Bxdf::Lambert { .. } | Bxdf::Phong { .. } | Bxdf::Mirror { .. } | Bxdf::Conductor { .. } => false,
+        Bxdf::Lambert { .. }
+        | Bxdf::Phong { .. }
+        | Bxdf::Mirror { .. }
+        | Bxdf::Conductor { .. }
+        | Bxdf::MetallicRoughness { .. } => false,
     }
 }
 
@@ -246,3 +257,4 @@ pub fn integrate_sphere(
 pub fn integrate_whole_sphere(n: usize, g: impl Fn(Vec3A) -> Rgb) -> [f64; 3] {
     integrate_sphere((0.0, std::f64::consts::PI), (0.0, std::f64::consts::TAU), (2 * n, 2 * n), g)
 }
+pub mod gltf;
