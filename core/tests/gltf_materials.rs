@@ -61,7 +61,9 @@ fn imported() -> Imported {
     b.member(
         r#""extensionsUsed":["KHR_materials_transmission","KHR_materials_ior","KHR_materials_emissive_strength"]"#,
     );
-    let dir = folder("materials");
+    // One folder per call: the tests run in parallel and each makes the file.
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let dir = folder(&format!("materials-{}", CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)));
     let path = dir.join("materials.glb");
     std::fs::write(&path, b.glb()).unwrap();
     let out = import(&path, &glam::Affine3A::IDENTITY, u64::MAX, u64::MAX).unwrap();

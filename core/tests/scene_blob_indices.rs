@@ -13,7 +13,7 @@
 use photon_core::codec;
 use photon_core::geometry::shapes::{NO_MESH, Shape};
 use photon_core::geometry::{MeshShading, NONE, PlanePrimitive, Primitive};
-use photon_core::light::Light;
+use photon_core::light::{BoundingSphere, Light, SkyDistribution};
 use photon_core::material::Material;
 use photon_core::medium::Media;
 use photon_core::prepare::Prepared;
@@ -41,12 +41,13 @@ struct Geom {
     meshes: Vec<MeshShading>,
 }
 
-/// `LightSet`'s serde form: the lights and their choice tables.
+/// `LightSet`'s serde form: the lights, their choice tables and the environment image's distribution.
 #[derive(Clone, Serialize, Deserialize)]
 struct Lights {
     lights: Vec<Light>,
     cdf: Vec<f32>,
     pmf: Vec<f32>,
+    sky: Option<SkyDistribution>,
 }
 
 /// The test scene; `MEDIUM` is replaced by the fog's table or nothing.
@@ -293,6 +294,24 @@ fn cases(b: &Blob, fog: bool) -> Vec<Case> {
                 b.lights.cdf.pop();
             }),
             "lights.cdf".into(),
+        ),
+        (
+            "an environment before the last light",
+            Box::new(|b| {
+                let bounds = BoundingSphere { center: glam::Vec3A::ZERO, radius: 1.0 };
+                let env = Light::Environment {
+                    radiance: photon_core::Rgb::ONE,
+                    image: NONE,
+                    turn: glam::Vec2::X,
+                    mean: photon_core::Rgb::ONE,
+                    bounds,
+                };
+                let point = Light::Point { p: glam::Vec3A::Y, intensity: photon_core::Rgb::ONE };
+                b.lights.lights.extend([env, point]);
+                b.lights.cdf.extend([1.0, 1.0]);
+                b.lights.pmf.extend([0.0, 0.0]);
+            }),
+            format!("lights[{lights}]"),
         ),
         (
             "a primitive's light past the lights",

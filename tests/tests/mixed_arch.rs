@@ -121,7 +121,7 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
     let big = dir.join("big-mesh.toml");
     std::fs::write(&big, scene).unwrap();
     let big = big.to_string_lossy().into_owned();
-    let jobs: [(&str, &[&str]); 14] = [
+    let jobs: [(&str, &[&str]); 17] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
@@ -146,6 +146,10 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
             "rough-spheres.toml",
             &["--size", "32x32", "--integrator", "progressive", "--passes", "2", "--photons", "20000"],
         ),
+        // An HDR environment (its image lookups, sampled directions and disc emission) and a spot light.
+        ("sky.toml", &["--size", "32x20", "--spp", "2", "--integrator", "path"]),
+        ("sky.toml", &["--size", "32x20", "--integrator", "vcm", "--passes", "2"]),
+        ("sky.toml", &["--size", "32x20", "--integrator", "progressive", "--passes", "2", "--photons", "20000"]),
     ];
     for (scene, job) in jobs {
         let (a, b) = (dir.join("x86.exr"), dir.join("arm.exr"));

@@ -67,9 +67,9 @@ impl Prepared {
         let (materials, images, env_slot) = textures::load_with(scene, scene_path, &mut imported)?;
         let (mut geometry, emitters, boundaries) = geometry(scene, scene_path, &imported)?;
         check_photon_radius(scene, &geometry, scene_path)?;
-        let imported_lights: Vec<LightSpec> =
-            imported.iter().flatten().flat_map(|i| i.lights.iter().cloned()).collect();
-        let lights = lights(scene, &imported_lights, &mut geometry, &emitters, &images, env_slot);
+        let specs: Vec<LightSpec> =
+            scene.lights.iter().chain(imported.iter().flatten().flat_map(|i| i.lights.iter())).cloned().collect();
+        let lights = lights(&specs, &mut geometry, &emitters, &images, env_slot);
         let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
         if media.is_some() && scene.render.integrator.warns_in_media() {
             tracing::warn!(
@@ -456,12 +456,11 @@ fn level_of_detail(
 }
 
 /// The lights: area lights in scene order (whatever order the BVH put their primitives in), then point, spot
-/// and directional lights in scene order and those of glTF objects (`imported`), then the environment (with the
-/// distribution of its image, texture slot `env_slot` of `images`); each emitting primitive is pointed at its
-/// final light index.
+/// and directional lights in the order of `specs` (the scene's, then its glTF objects'), then the environment
+/// (with the distribution of its image, texture slot `env_slot` of `images`); each emitting primitive is
+/// pointed at its final light index.
 fn lights(
-    scene: &Scene,
-    imported: &[LightSpec],
+    specs: &[LightSpec],
     geometry: &mut Geometry,
     emitters: &[Emission],
     images: &[TexelImage],
@@ -488,7 +487,7 @@ fn lights(
     lights.extend(area_lights.into_iter().map(|(_, l)| l));
     let bounds = bounding_sphere(geometry);
     let mut sky = None;
-    for l in scene.lights.iter().chain(imported) {
+    for l in specs {
         let intensity =
             |intensity: &Option<glam::Vec3>, power: &Option<glam::Vec3>, per_sr: f32| match (intensity, power) {
                 (Some(i), _) => Rgb::from(*i),
@@ -522,7 +521,7 @@ fn lights(
         };
         lights.push(light);
     }
-    for l in &scene.lights {
+    for l in specs {
         if let LightSpec::Environment { radiance, scale, rotate, .. } = l {
             let image = images.get(env_slot as usize);
             sky = image.map(SkyDistribution::new);
