@@ -121,7 +121,7 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
     let big = dir.join("big-mesh.toml");
     std::fs::write(&big, scene).unwrap();
     let big = big.to_string_lossy().into_owned();
-    let jobs: [(&str, &[&str]); 17] = [
+    let jobs: [(&str, &[&str]); 19] = [
         ("cornell.toml", &["--size", "48x36", "--spp", "2", "--integrator", "photon-map", "--photons", "20000"]),
         ("mesh.toml", &["--size", "40x40", "--spp", "2", "--integrator", "path"]),
         ("caustic-point.toml", &["--size", "40x30", "--integrator", "progressive", "--passes", "3"]),
@@ -150,6 +150,9 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
         ("sky.toml", &["--size", "32x20", "--spp", "2", "--integrator", "path"]),
         ("sky.toml", &["--size", "32x20", "--integrator", "vcm", "--passes", "2"]),
         ("sky.toml", &["--size", "32x20", "--integrator", "progressive", "--passes", "2", "--photons", "20000"]),
+        // A glTF file: its node transforms, metallic–roughness materials, embedded texture and punctual lights.
+        ("gltf-showcase.toml", &["--size", "32x20", "--spp", "2", "--integrator", "path"]),
+        ("gltf-showcase.toml", &["--size", "32x20", "--integrator", "vcm", "--passes", "2"]),
     ];
     for (scene, job) in jobs {
         let (a, b) = (dir.join("x86.exr"), dir.join("arm.exr"));

@@ -69,6 +69,7 @@ impl Prepared {
         check_photon_radius(scene, &geometry, scene_path)?;
         let specs: Vec<LightSpec> =
             scene.lights.iter().chain(imported.iter().flatten().flat_map(|i| i.lights.iter())).cloned().collect();
+        check_imported_lights(scene, scene_path, &specs)?;
         let lights = lights(&specs, &mut geometry, &emitters, &images, env_slot);
         let media = boundaries.map(|boundaries| media(scene, &geometry, &lights, boundaries));
         if media.is_some() && scene.render.integrator.warns_in_media() {
@@ -179,6 +180,22 @@ fn check_photon_radius(scene: &Scene, geometry: &Geometry, scene_path: &std::pat
                 "{radius:e} is below the smallest gather radius for this scene, {floor:e} \
                  ({MIN_RELATIVE_PHOTON_RADIUS:e} of its size {size})"
             ),
+        });
+    }
+    Ok(())
+}
+
+/// A glTF object's directional light in a scene with participating media is refused, as the scene's own are
+/// (`Scene::check`): the volumetric paths do not reach infinity. `specs` are the scene's lights, then its glTF
+/// objects'.
+fn check_imported_lights(scene: &Scene, scene_path: &std::path::Path, specs: &[LightSpec]) -> Result<(), SceneError> {
+    let imported = specs.get(scene.lights.len()..).unwrap_or(&[]);
+    if scene.has_media() && imported.iter().any(|l| matches!(l, LightSpec::Directional { .. })) {
+        return Err(SceneError::Invalid {
+            path: scene_path.into(),
+            line: None,
+            field: "objects".into(),
+            message: "a glTF object's directional light is not supported in a scene with participating media".into(),
         });
     }
     Ok(())

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The stability suite (issue "speed against accuracy", item 4): every scene of scenes/stress/, the two
-# scenes with participating media (scenes/fog.toml, scenes/volume-caustic.toml) and the PLY mesh scene
-# (scenes/ply-mesh.toml), through all five methods at one modest budget, each compared with a high-sample
+# scenes with participating media (scenes/fog.toml, scenes/volume-caustic.toml), the PLY mesh scene
+# (scenes/ply-mesh.toml), the glTF scene (scenes/gltf-showcase.toml) and the sky (scenes/sky.toml), through all
+# five methods at one modest budget, each compared with a high-sample
 # reference of the same scene.
 #
 #   bash docs/figures/stress/run.sh            # from the repository root; about 8 minutes on 2 shared cores
@@ -81,7 +82,7 @@ csv=${CSV:-$out/results.csv}
 echo "scene,method,budget,reference,prepare_s,render_s,total_s,rmse,rel_mse,rel_bias,nan,inf,neg,status" >"$csv"
 
 # shellcheck disable=SC2206  # the list is meant to split and glob
-scene_files=(${SCENES:-scenes/stress/*.toml scenes/fog.toml scenes/volume-caustic.toml scenes/ply-mesh.toml})
+scene_files=(${SCENES:-scenes/stress/*.toml scenes/fog.toml scenes/volume-caustic.toml scenes/ply-mesh.toml scenes/gltf-showcase.toml scenes/sky.toml})
 for scene_file in "${scene_files[@]}"; do
     scene=$(basename "$scene_file" .toml)
     if [[ $progressive_reference == *" $scene "* ]]; then
