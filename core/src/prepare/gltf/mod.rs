@@ -8,10 +8,10 @@
 //! transform = { translate = [0.0, 0.0, 0.0], rotate = [0.0, 30.0, 0.0], scale = 1.0 }
 //! ```
 //!
-//! Preparing the scene expands the object into triangle meshes ([`nodes`]), one per primitive of every mesh
+//! Preparing the scene expands the object into triangle meshes (module `nodes`), one per primitive of every mesh
 //! node of the file's default scene, placed by the node hierarchy (matrix or TRS, parent → child) and then by
-//! the object's `transform`; its materials become [`Material::MetallicRoughness`] or, with
-//! `KHR_materials_transmission`, [`Material::Dielectric`] ([`materials`]); its images are decoded by the
+//! the object's `transform`; its materials become [`crate::material::Material::MetallicRoughness`] or, with
+//! `KHR_materials_transmission`, [`crate::material::Material::Dielectric`] (module `materials`); its images are decoded by the
 //! texture loader into the prepared scene's texture list, so they travel as content-addressed blobs like any
 //! texture; its `KHR_lights_punctual` lights join the scene's lights. `photon-coordinator render model.glb`
 //! renders a file directly through a scene made for it ([`direct`]).
