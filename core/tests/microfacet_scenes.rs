@@ -109,9 +109,11 @@ fn rough_glass_and_metal_in_a_white_furnace_are_nearly_invisible() {
         (Method::Path, 64),
         (Method::Bdpt, 64),
         (Method::Vcm, 64),
-        (Method::PhotonMap, 16),
-        (Method::FinalGather, 16),
-        (Method::Progressive, 16),
+        // 64: the walk through the glossy metal samples the light there, whose rare bright samples in the
+        // narrow lobe leave photon-map 0.8 % high on the metal at 16 spp (0.07 % at 256).
+        (Method::PhotonMap, 64),
+        (Method::FinalGather, 64),
+        (Method::Progressive, 64),
     ] {
         let [m, glass, metal] = means(&render(&scene, path, integrator, 16, budget));
         eprintln!("furnace, {integrator}: mean {m:.4}, glass {glass:.4}, metal {metal:.4}");

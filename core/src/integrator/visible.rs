@@ -1,6 +1,7 @@
 //! The walk of a camera path through mirror and glass (and across media) to its first non-delta vertex, which
 //! the photon methods estimate at.
 
+use super::direct::{emission, escaped, sample_one_light};
 use crate::Rgb;
 use crate::geometry::{Hit, NONE};
 use crate::material::bsdf::{Bsdf, TransportMode};
@@ -38,7 +39,9 @@ pub struct Segment<'a> {
 pub type VolumeEstimate<'a> = dyn FnMut(&mut Tracer, &Segment) -> Rgb + 'a;
 
 /// Follows `ray` through mirror and glass to the first surface with a non-delta component rough enough to store
-/// photons ([`Bsdf::stores_photons`]); through a glossier lobe it walks on by sampling it. At a surface with
+/// photons ([`Bsdf::stores_photons`]); through a glossier lobe it walks on by sampling it, after sampling one
+/// light there (joined by MIS to the emission the walk then finds; without it, a point, spot or directional
+/// light's highlight on a glossy surface, or its light through rough glass, is lost). At a surface with
 /// both (the mixture), the path continues only if the delta lobe is sampled, and that surface is the vertex.
 /// In a scene without media.
 pub fn visible_point(tracer: &mut Tracer, max_depth: u32, ray: Ray) -> VisiblePoint {
@@ -61,6 +64,11 @@ pub fn visible_point_in(
     let mut in_volume = Rgb::ZERO;
     // Crossings of `interface` surfaces are not bounces.
     let (mut bounces, mut crossings) = (0u32, 0u32);
+    // The last bounce was a delta lobe (or the camera), and the density of its direction: emission found next
+    // is weighted against light sampling at the glossy vertex it left (`emission`). In a scene with media the
+    // walk samples no light at glossy vertices and counts emission in full.
+    let (mut prev_delta, mut prev_pdf) = (true, 0.0f32);
+    let nee_off = prep.media.is_some();
     while bounces <= max_depth {
         let found = tracer.intersect(&ray, f32::INFINITY);
         if let Some(m) = medium.filter(|m| !m.is_vacuum()) {
@@ -72,16 +80,18 @@ pub fn visible_point_in(
             }
         }
         let Some(hit) = found else {
-            if let Some((_, env)) = prep.lights.environment() {
-                le += beta * env.le_escaped(&prep.light_scene(), ray.d);
+            let (e, w) = escaped(prep, &ray, prev_delta || nee_off, prev_pdf);
+            if e != Rgb::ZERO {
+                le += beta * e * w;
             }
             break;
         };
         let wo = -ray.d;
-        if hit.light != NONE
-            && let Some(light) = prep.lights.lights.get(hit.light as usize)
-        {
-            le += beta * light.le(&hit, wo);
+        if hit.light != NONE {
+            let (e, w) = emission(prep, &hit, &ray, prev_delta || nee_off, prev_pdf);
+            if e != Rgb::ZERO {
+                le += beta * e * w;
+            }
         }
         let Some(material) = prep.materials.get(hit.material as usize) else { break };
         if let Some(media) = &prep.media
@@ -103,8 +113,14 @@ pub fn visible_point_in(
         if bsdf.stores_photons(prep.settings.photons.min_roughness) {
             return VisiblePoint { le, volume: in_volume, vertex: Some((beta, hit, bsdf, wo)), medium };
         }
+        // Light reflected here straight from a light: sampled on the light (a delta light can be found no other
+        // way) and joined by MIS to the emission the BSDF sample below finds.
+        if !nee_off && bsdf.has_non_delta() {
+            le += beta * sample_one_light(tracer, &hit, &bsdf, wo, medium, true);
+        }
         // A zero BSDF value, which `sample_bsdf` refuses, would have ended the walk at the test below.
         let Some(bs) = tracer.sample_bsdf(&bsdf, wo, TransportMode::Radiance) else { break };
+        (prev_delta, prev_pdf) = (bs.delta, bs.pdf);
         beta *= bsdf.sample_weight(wo, &bs, bs.pdf, TransportMode::Radiance);
         if !beta.is_finite() || beta == Rgb::ZERO {
             break;
