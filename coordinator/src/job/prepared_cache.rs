@@ -84,34 +84,22 @@ impl PreparedCache {
         h.update(&enc("materials", photon_core::codec::encode(&scene.materials))?);
         h.update(&enc("objects", photon_core::codec::encode(&scene.objects))?);
         h.update(&enc("lights", photon_core::codec::encode(&scene.lights))?);
-        // A file that cannot be read (or is not a regular file, or is over the limit: `/dev/zero` would never
-        // end) is left to the loader, which reports it with the scene's context.
-        let limit = scene.limits.mesh_mib.saturating_mul(1 << 20);
+        let mesh_limit = (scene.limits.mesh_mib.saturating_mul(1 << 20), "limits.mesh_mib");
+        let texture_limit = (scene.limits.texture_mib.saturating_mul(1 << 20), "limits.texture_mib");
         for o in &scene.objects {
             if let Object::Mesh { file, .. } = o {
-                let path = scene.base_dir.join(file);
-                let bytes = photon_core::input::read_regular(&path, limit, "limits.mesh_mib").unwrap_or_default();
-                h.update(path.to_string_lossy().as_bytes());
-                h.update(&(bytes.len() as u64).to_le_bytes());
-                h.update(&bytes);
+                hash_file(&mut h, &scene.base_dir.join(file), mesh_limit);
             }
         }
         // glTF objects: the file and the buffers and images beside it (its embedded images too: the scene key
         // covers the photons key).
         for path in photon_core::prepare::gltf::files(scene) {
-            let bytes = photon_core::input::read_regular(&path, limit, "limits.mesh_mib").unwrap_or_default();
-            h.update(path.to_string_lossy().as_bytes());
-            h.update(&(bytes.len() as u64).to_le_bytes());
-            h.update(&bytes);
+            hash_file(&mut h, &path, mesh_limit);
         }
         // The environment's image decides the scene blob's distribution over it and its power.
-        if let Some((_, file)) = photon_core::prepare::textures::environment_image(scene) {
-            let path = scene.base_dir.join(file);
-            let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
-            let bytes = photon_core::input::read_regular(&path, limit, "limits.texture_mib").unwrap_or_default();
-            h.update(path.to_string_lossy().as_bytes());
-            h.update(&(bytes.len() as u64).to_le_bytes());
-            h.update(&bytes);
+        let env_image = photon_core::prepare::textures::environment_image(scene).map(|(_, f)| scene.base_dir.join(f));
+        if let Some(path) = &env_image {
+            hash_file(&mut h, path, texture_limit);
         }
         // The level of detail of each mesh: kept whole (0), or simplified with this bound (its bits).
         for lod in photon_core::prepare::lod::plan(scene) {
@@ -129,13 +117,11 @@ impl PreparedCache {
         h.update(scene_key.as_bytes());
         h.update(&enc("settings", photon_core::codec::encode(&settings))?);
         // Photons bounce off textured surfaces: their images' bytes decide the maps (not the scene blob, which
-        // names images by slot).
-        let limit = scene.limits.texture_mib.saturating_mul(1 << 20);
+        // names images by slot). The environment's image is in the scene key already.
         for (path, _) in photon_core::prepare::textures::files(scene) {
-            let bytes = photon_core::input::read_regular(&path, limit, "limits.texture_mib").unwrap_or_default();
-            h.update(path.to_string_lossy().as_bytes());
-            h.update(&(bytes.len() as u64).to_le_bytes());
-            h.update(&bytes);
+            if env_image.as_ref() != Some(&path) {
+                hash_file(&mut h, &path, texture_limit);
+            }
         }
         Ok(Keys { scene: scene_key, photons: h.finalize().to_hex().to_string() })
     }
@@ -171,6 +157,16 @@ impl PreparedCache {
     pub fn dir(&self) -> &Path {
         self.store.dir()
     }
+}
+
+/// Adds file `path` to `h`: its path, its length and its bytes, read within `limit` (bytes, and the setting that
+/// sets them). A file that cannot be read (or is not a regular file, or is over the limit: `/dev/zero` would
+/// never end) adds its path and length 0, and is left to the loader, which reports it with the scene's context.
+fn hash_file(h: &mut photon_proto::Hasher, path: &std::path::Path, (limit, setting): (u64, &'static str)) {
+    let bytes = photon_core::input::read_regular(path, limit, setting).unwrap_or_default();
+    h.update(path.to_string_lossy().as_bytes());
+    h.update(&(bytes.len() as u64).to_le_bytes());
+    h.update(&bytes);
 }
 
 #[cfg(test)]

@@ -98,11 +98,7 @@ impl LightPoint {
         let (target, li, geometric) = match *self {
             LightPoint::Point { p, light } => {
                 let d2 = (x - p).length_squared();
-                let intensity = match light {
-                    Light::Spot { .. } => light.intensity((x - p) / d2.sqrt()),
-                    _ => light.intensity(Vec3A::Z),
-                };
-                (p, intensity / d2, 0.0)
+                (p, light.intensity((x - p) / d2.sqrt()) / d2, 0.0)
             }
             LightPoint::Area { p, p_error, n, le, two_sided, area } => {
                 let d = p - x;

@@ -26,7 +26,6 @@ use crate::photon::{Estimator, Gather, PhotonMaps};
 use crate::scene::{Emission, GatherMode, LightSpec, MediumSpec, Object, RenderSettings, Scene, SceneError};
 use glam::Vec3A;
 use serde::{Deserialize, Serialize};
-use std::f32::consts::PI;
 
 /// Everything a worker needs to render any pixel of a scene.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -503,30 +502,25 @@ fn lights(
     area_lights.sort_by_key(|(k, _)| *k);
     lights.extend(area_lights.into_iter().map(|(_, l)| l));
     let bounds = bounding_sphere(geometry);
-    let mut sky = None;
+    // `intensity`, or `power` over the light's power at unit intensity ([`Light::power`]).
+    let intensity = |unit: Light, intensity: &Option<glam::Vec3>, power: &Option<glam::Vec3>| match (intensity, power) {
+        (Some(i), _) => Rgb::from(*i),
+        (None, Some(p)) => Rgb::from(*p) / unit.power().x,
+        (None, None) => Rgb::ZERO,
+    };
+    let mut environment = None;
     for l in specs {
-        let intensity =
-            |intensity: &Option<glam::Vec3>, power: &Option<glam::Vec3>, per_sr: f32| match (intensity, power) {
-                (Some(i), _) => Rgb::from(*i),
-                (None, Some(p)) => Rgb::from(*p) / per_sr,
-                (None, None) => Rgb::ZERO,
-            };
         let light = match l {
             LightSpec::Point { position, intensity: i, power } => {
-                Light::Point { p: Vec3A::from(*position), intensity: intensity(i, power, 4.0 * PI) }
+                let point = |intensity| Light::Point { p: Vec3A::from(*position), intensity };
+                point(intensity(point(Rgb::ONE), i, power))
             }
             LightSpec::Spot { position, direction, intensity: i, power, inner_angle, outer_angle } => {
+                let (p, axis) = (Vec3A::from(*position), fmath::normalize(Vec3A::from(*direction)));
                 let (cos_outer, cos_inner) =
                     (fmath::cos(outer_angle.to_radians()), fmath::cos(inner_angle.to_radians()));
-                // The power of unit intensity ([`Light::power`]).
-                let per_sr = 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer));
-                Light::Spot {
-                    p: Vec3A::from(*position),
-                    intensity: intensity(i, power, per_sr),
-                    axis: fmath::normalize(Vec3A::from(*direction)),
-                    cos_outer,
-                    cos_inner,
-                }
+                let spot = |intensity| Light::Spot { p, intensity, axis, cos_outer, cos_inner };
+                spot(intensity(spot(Rgb::ONE), i, power))
             }
             LightSpec::Directional { direction, irradiance } => Light::Directional {
                 d: fmath::normalize(Vec3A::from(*direction)),
@@ -534,25 +528,17 @@ fn lights(
                 bounds,
             },
             // The environment comes last ([`LightSet::environment`]).
-            LightSpec::Environment { .. } => continue,
+            LightSpec::Environment { radiance, scale, rotate, .. } => {
+                environment = Some(environment_light(*radiance, *scale, *rotate, images, env_slot, bounds));
+                continue;
+            }
         };
         lights.push(light);
     }
-    for l in specs {
-        if let LightSpec::Environment { radiance, scale, rotate, .. } = l {
-            let image = images.get(env_slot as usize);
-            sky = image.map(SkyDistribution::new);
-            let (radiance, mean) = match (radiance, image) {
-                (Some(r), _) => (Rgb::from(*r), Rgb::from(*r)),
-                (None, Some(img)) => (Rgb::splat(*scale), *scale * SkyDistribution::mean_radiance(img)),
-                (None, None) => (Rgb::ZERO, Rgb::ZERO),
-            };
-            let turn = rotate.to_radians();
-            let turn = glam::Vec2::new(fmath::cos(turn), fmath::sin(turn));
-            let image = if image.is_some() { env_slot } else { NONE };
-            lights.push(Light::Environment { radiance, image, turn, mean, bounds });
-        }
-    }
+    let sky = environment.and_then(|(light, sky)| {
+        lights.push(light);
+        sky
+    });
     // Primitives point at their light by the final light index.
     let mut light_of_prim = vec![NONE; geometry.prims.len()];
     for (li, l) in lights.iter().enumerate() {
@@ -564,6 +550,28 @@ fn lights(
         p.light = l;
     }
     LightSet::new(lights, sky)
+}
+
+/// The environment light of a `radiance`, or of texture slot `env_slot` of `images` times `scale`, turned by
+/// `rotate` degrees about +y, with the distribution of its image.
+fn environment_light(
+    radiance: Option<glam::Vec3>,
+    scale: f32,
+    rotate: f32,
+    images: &[TexelImage],
+    env_slot: u32,
+    bounds: BoundingSphere,
+) -> (Light, Option<SkyDistribution>) {
+    let image = images.get(env_slot as usize);
+    let (radiance, mean) = match (radiance, image) {
+        (Some(r), _) => (Rgb::from(r), Rgb::from(r)),
+        (None, Some(img)) => (Rgb::splat(scale), scale * SkyDistribution::mean_radiance(img)),
+        (None, None) => (Rgb::ZERO, Rgb::ZERO),
+    };
+    let turn = rotate.to_radians();
+    let turn = glam::Vec2::new(fmath::cos(turn), fmath::sin(turn));
+    let slot = if image.is_some() { env_slot } else { NONE };
+    (Light::Environment { radiance, image: slot, turn, mean, bounds }, image.map(SkyDistribution::new))
 }
 
 /// The sphere around the bounded primitives (planes are not counted), from which the infinitely distant
