@@ -6,20 +6,14 @@
 #![allow(clippy::unwrap_used)]
 
 use photon_core::method::Method;
-use photon_core::prepare::Prepared;
-use photon_core::render::render_image;
 use photon_core::scene::Scene;
 use std::path::PathBuf;
 
+mod common;
+
+/// The image mean of `scene` by `integrator` at `budget` ([`common::render_method`]).
 fn mean(scene: &Scene, path: &std::path::Path, integrator: Method, budget: u32) -> f64 {
-    let mut scene = scene.clone();
-    scene.render.integrator = integrator;
-    scene.render.spp = budget;
-    scene.render.photons.passes = budget;
-    let prep = Prepared::new(&scene, path).unwrap().with_photon_maps(path).unwrap();
-    let strip = render_image(&prep, &|_| {});
-    assert!(strip.pixels.iter().all(|v| v.is_finite() && *v >= 0.0), "{integrator}: a pixel is negative or not finite");
-    strip.pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / strip.pixels.len() as f64
+    common::image_mean(&common::render_method(scene, path, integrator, budget))
 }
 
 #[test]

@@ -15,23 +15,13 @@ use photon_core::math::rng::Sampler;
 use photon_core::method::Method;
 use photon_core::prepare::Prepared;
 use photon_core::prepare::tracer::Tracer;
-use photon_core::render::render_image;
 use photon_core::scene::Scene;
 use std::f32::consts::PI;
 use std::path::Path;
 
-/// Renders `scene` with `integrator` at its size, `budget` samples or passes per pixel, with the photon maps the
-/// method needs traced for it.
-fn render(scene: &Scene, path: &Path, integrator: Method, budget: u32) -> Image {
-    let mut scene = scene.clone();
-    scene.render.integrator = integrator;
-    scene.render.spp = budget;
-    scene.render.photons.passes = budget;
-    let prep = Prepared::new(&scene, path).unwrap().with_photon_maps(path).unwrap();
-    let strip = render_image(&prep, &|_| {});
-    assert!(strip.pixels.iter().all(|v| v.is_finite() && *v >= 0.0), "{integrator}: a pixel is negative or not finite");
-    Image { width: scene.camera.width, height: scene.camera.height, pixels: strip.pixels }
-}
+mod common;
+
+use common::render_method as render;
 
 /// The mean over pixels `xs × ys` of every channel.
 fn mean_over(image: &Image, xs: std::ops::Range<u32>, ys: std::ops::Range<u32>) -> f64 {

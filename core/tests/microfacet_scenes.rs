@@ -13,28 +13,19 @@
 
 use photon_core::image_io::Image;
 use photon_core::method::Method;
-use photon_core::prepare::Prepared;
-use photon_core::render::render_image;
 use photon_core::scene::Scene;
 use std::path::Path;
 
-/// Renders `scene` with `integrator` at `size`², `budget` samples or passes per pixel, with the photon maps the
-/// method needs traced for it.
+mod common;
+
+use common::{image_mean as mean, render_method};
+
+/// Renders `scene` with `integrator` at `size`², `budget` samples or passes per pixel ([`render_method`]).
 fn render(scene: &Scene, path: &Path, integrator: Method, size: u32, budget: u32) -> Image {
     let mut scene = scene.clone();
-    scene.render.integrator = integrator;
     scene.camera.width = size;
     scene.camera.height = size;
-    scene.render.spp = budget;
-    scene.render.photons.passes = budget;
-    let prep = Prepared::new(&scene, path).unwrap().with_photon_maps(path).unwrap();
-    let strip = render_image(&prep, &|_| {});
-    assert!(strip.pixels.iter().all(|v| v.is_finite() && *v >= 0.0), "{integrator}: a pixel is negative or not finite");
-    Image { width: size, height: size, pixels: strip.pixels }
-}
-
-fn mean(image: &Image) -> f64 {
-    image.pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / image.pixels.len() as f64
+    render_method(&scene, path, integrator, budget)
 }
 
 const FURNACE: &str = r#"

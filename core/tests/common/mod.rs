@@ -258,3 +258,27 @@ pub fn integrate_whole_sphere(n: usize, g: impl Fn(Vec3A) -> Rgb) -> [f64; 3] {
     integrate_sphere((0.0, std::f64::consts::PI), (0.0, std::f64::consts::TAU), (2 * n, 2 * n), g)
 }
 pub mod gltf;
+
+/// Renders `scene` (read from `path`) with `integrator` at its own size, `budget` samples or passes per pixel,
+/// with the photon maps the method needs traced for it; asserts that every pixel is finite and non-negative.
+#[allow(clippy::unwrap_used)]
+pub fn render_method(
+    scene: &photon_core::scene::Scene,
+    path: &std::path::Path,
+    integrator: photon_core::method::Method,
+    budget: u32,
+) -> photon_core::image_io::Image {
+    let mut scene = scene.clone();
+    scene.render.integrator = integrator;
+    scene.render.spp = budget;
+    scene.render.photons.passes = budget;
+    let prep = photon_core::prepare::Prepared::new(&scene, path).unwrap().with_photon_maps(path).unwrap();
+    let strip = photon_core::render::render_image(&prep, &|_| {});
+    assert!(strip.pixels.iter().all(|v| v.is_finite() && *v >= 0.0), "{integrator}: a pixel is negative or not finite");
+    photon_core::image_io::Image { width: scene.camera.width, height: scene.camera.height, pixels: strip.pixels }
+}
+
+/// The mean of every value of `image`.
+pub fn image_mean(image: &photon_core::image_io::Image) -> f64 {
+    image.pixels.iter().map(|&v| f64::from(v)).sum::<f64>() / image.pixels.len() as f64
+}
