@@ -33,12 +33,14 @@ struct Blob {
     media: Option<Media>,
 }
 
-/// `Geometry`'s serde form: the primitives in leaf order, the planes, the meshes' shading data (no BVH).
+/// `Geometry`'s serde form: the primitives in leaf order, the planes, the meshes' shading data and the
+/// cut-outs (no BVH).
 #[derive(Clone, Serialize, Deserialize)]
 struct Geom {
     prims: Vec<Primitive>,
     planes: Vec<PlanePrimitive>,
     meshes: Vec<MeshShading>,
+    masks: Vec<photon_core::geometry::mask::AlphaMask>,
 }
 
 /// `LightSet`'s serde form: the lights, their choice tables and the environment image's distribution.
@@ -353,6 +355,12 @@ fn cases(b: &Blob, fog: bool) -> Vec<Case> {
             format!("meshes[{m}].normal_indices"),
         ),
         ("a UV-only triangle's face", Box::new(move |b| mesh_of(b, ut, &|_, face| *face = 1)), "uv_indices".into()),
+        ("a mesh's cut-out past the cut-outs", Box::new(move |b| b.geometry.meshes[m].mask = Some(0)), "masks".into()),
+        (
+            "a mesh's tangents fewer than its normals",
+            Box::new(move |b| b.geometry.meshes[m].tangents = vec![[1.0, 0.0, 0.0, 1.0]; normals - 1]),
+            format!("meshes[{m}].tangents"),
+        ),
     ];
     if fog {
         let objects = b.media.as_ref().unwrap().boundaries.len() as u32;

@@ -6,6 +6,7 @@
 
 pub mod bvh;
 pub mod lod;
+pub mod mask;
 pub mod mesh;
 pub mod mesh_file;
 pub mod ply;
@@ -14,6 +15,7 @@ pub mod shapes;
 use crate::math::{Aabb, Ray, offset_ray_origin_by_error};
 use bvh::Bvh;
 use glam::{Vec2, Vec3A};
+use mask::AlphaMask;
 use serde::{Deserialize, Serialize};
 use shapes::{LocalHit, Plane, Shape, TriangleRay};
 
@@ -45,17 +47,24 @@ pub struct PlanePrimitive {
     pub object: u32,
 }
 
-/// Per-vertex shading data of one mesh: normals and UVs indexed per face corner.
+/// Per-vertex shading data of one mesh: normals, tangents and UVs indexed per face corner, and the cut-out
+/// its faces have.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MeshShading {
     /// World-space unit normals.
     pub normals: Vec<[f32; 3]>,
+    /// World-space unit tangents `(x, y, z)` with the bitangent's sign `w` (±1), one per normal and indexed by
+    /// `normal_indices`: the bitangent is `w · (n × t)` (glTF's TANGENT attribute, specification §3.7.2.1).
+    /// Empty when the mesh has none: normal maps then use `∂p/∂u`.
+    pub tangents: Vec<[f32; 4]>,
     /// Texture coordinates (may be empty).
     pub uvs: Vec<[f32; 2]>,
     /// For each face, the normal index of each corner.
     pub normal_indices: Vec<[u32; 3]>,
     /// For each face, the UV index of each corner (empty when the mesh has no UVs).
     pub uv_indices: Vec<[u32; 3]>,
+    /// Index into [`Geometry::masks`] of the cut-out the faces have, read at their UVs; `None`: opaque.
+    pub mask: Option<u32>,
 }
 
 /// Which primitive a hit is on.
@@ -133,6 +142,8 @@ pub struct Geometry {
     pub planes: Vec<PlanePrimitive>,
     /// Shading data of meshes.
     pub meshes: Vec<MeshShading>,
+    /// The cut-outs that meshes' `mask` index.
+    pub masks: Vec<AlphaMask>,
 }
 
 /// [`Geometry`] as it is deserialised: the same fields but the BVH.
@@ -141,11 +152,12 @@ struct GeometryParts {
     prims: Vec<Primitive>,
     planes: Vec<PlanePrimitive>,
     meshes: Vec<MeshShading>,
+    masks: Vec<AlphaMask>,
 }
 
 impl From<GeometryParts> for Geometry {
     fn from(p: GeometryParts) -> Self {
-        Geometry::new(p.prims, p.planes, p.meshes)
+        Geometry::new(p.prims, p.planes, p.meshes).with_masks(p.masks)
     }
 }
 
@@ -157,7 +169,13 @@ impl Geometry {
         // Primitives decoded from a scene blob are in leaf order already (the build over them is the identity).
         let in_order = order.iter().enumerate().all(|(k, &i)| i as usize == k);
         let prims = if in_order { prims } else { order.iter().map(|&i| prims[i as usize]).collect() };
-        Self { prims, bvh, planes, meshes }
+        Self { prims, bvh, planes, meshes, masks: Vec::new() }
+    }
+
+    /// The geometry with the cut-outs `masks`, which the meshes' `mask` fields index.
+    pub fn with_masks(mut self, masks: Vec<AlphaMask>) -> Self {
+        self.masks = masks;
+        self
     }
 
     /// The bounding box of all bounded primitives.
@@ -187,8 +205,39 @@ impl Geometry {
     /// shading, and what the ray casting benchmarks time.
     pub fn closest_bounded(&self, ray: &Ray, tmax: f32) -> Option<(u32, f32)> {
         let tri = TriangleRay::new(ray);
-        self.bvh
-            .closest_hit(ray.o, ray.d, tmax, |i, tmax| self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax))
+        if self.masks.is_empty() {
+            return self.bvh.closest_hit(ray.o, ray.d, tmax, |i, tmax| {
+                self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax)
+            });
+        }
+        self.bvh.closest_hit(ray.o, ray.d, tmax, |i, tmax| self.masked_hit(i, ray, &tri, tmax))
+    }
+
+    /// The distance to primitive `i` along `ray` below `tmax`, where a cut-out face is not there: a ray reaching
+    /// it where its alpha is below the cutoff passes through ([`mask`]).
+    #[inline]
+    fn masked_hit(&self, i: u32, ray: &Ray, tri: &TriangleRay, tmax: f32) -> Option<f32> {
+        match &self.prims[i as usize].shape {
+            Shape::Triangle(t) if t.mesh != shapes::NO_MESH => {
+                let (d, b1, b2) = t.intersect_prepared(tri, tmax)?;
+                self.covers(t, Vec2::new(b1, b2)).then_some(d)
+            }
+            s => s.intersect_prepared(ray, tri, tmax),
+        }
+    }
+
+    /// Whether mesh face `tri` is present at barycentrics `b`: it has no cut-out, no UVs, or its mask covers the
+    /// UVs interpolated there.
+    fn covers(&self, tri: &shapes::Triangle, b: Vec2) -> bool {
+        let Some(m) = self.meshes.get(tri.mesh as usize) else { return true };
+        let (Some(mask), Some(ix)) =
+            (m.mask.and_then(|k| self.masks.get(k as usize)), m.uv_indices.get(tri.face as usize))
+        else {
+            return true;
+        };
+        let w = [1.0 - b.x - b.y, b.x, b.y];
+        let uv = (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * Vec2::from_array(m.uvs[ix[k] as usize]));
+        mask.covers(uv)
     }
 
     /// Whether anything blocks `ray` in `(0, tmax)`.
@@ -197,9 +246,12 @@ impl Geometry {
             return true;
         }
         let tri = TriangleRay::new(ray);
-        self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| {
-            self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax).is_some()
-        })
+        if self.masks.is_empty() {
+            return self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| {
+                self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax).is_some()
+            });
+        }
+        self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| self.masked_hit(i, ray, &tri, tmax).is_some())
     }
 
     fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Hit {
@@ -252,14 +304,42 @@ impl Geometry {
             }
             None => (n, n),
         };
+        let tangent = match (m.tangents.is_empty(), m.normal_indices.get(face as usize)) {
+            (false, Some(ix)) => {
+                let c = ix.map(|k| m.tangents[k as usize]);
+                let t = (0..3).fold(Vec3A::ZERO, |acc, k| acc + w[k] * Vec3A::new(c[k][0], c[k][1], c[k][2]));
+                Some((t, if c[0][3] < 0.0 { -1.0 } else { 1.0 }))
+            }
+            _ => None,
+        };
         let uv = m.uv_indices.get(face as usize).map(|ix| {
             let c = ix.map(|k| Vec2::from_array(m.uvs[k as usize]));
             let uv = (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * c[k]);
             let (dpdu, dpdv) = uv_derivatives(&tri.p, &c);
-            (uv, dpdu, dpdv)
+            match tangent {
+                Some((t, sign)) => {
+                    let (dpdu, dpdv) = tangent_frame(ns, t, sign, dpdu, dpdv);
+                    (uv, dpdu, dpdv)
+                }
+                None => (uv, dpdu, dpdv),
+            }
         });
         (n, ns, uv)
     }
+}
+
+/// `∂p/∂u` and `∂p/∂v` turned to a mesh's tangent frame: along the interpolated tangent `t` made perpendicular
+/// to the shading normal `ns`, and along the bitangent `sign · (ns × t)` (glTF specification §3.7.2.1), each as
+/// long as the UVs' derivative it replaces (what a bump map's heights are measured against). A tangent that
+/// vanishes against `ns` keeps the UVs' derivatives.
+fn tangent_frame(ns: Vec3A, t: Vec3A, sign: f32, dpdu: Vec3A, dpdv: Vec3A) -> (Vec3A, Vec3A) {
+    let t = (t - ns * ns.dot(t)).normalize_or_zero();
+    if t == Vec3A::ZERO {
+        return (dpdu, dpdv);
+    }
+    let b = sign * crate::math::fmath::cross(ns, t);
+    let length = |v: Vec3A| if v.length() > 0.0 { v.length() } else { 1.0 };
+    (t * length(dpdu), b * length(dpdv))
 }
 
 /// `∂p/∂u` and `∂p/∂v` of a triangle with corners `p` and texture coordinates `uv`, from

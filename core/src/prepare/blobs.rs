@@ -71,7 +71,10 @@ impl SceneOwned {
     /// slots are checked against the texture blobs (`check_slots`).
     fn check_indices(&self) -> Result<(), FrameError> {
         let g = &self.geometry;
-        g.meshes.iter().enumerate().try_for_each(|(m, mesh)| check_mesh(m, mesh))?;
+        g.meshes.iter().enumerate().try_for_each(|(m, mesh)| check_mesh(m, mesh, g.masks.len()))?;
+        for (k, mask) in g.masks.iter().enumerate() {
+            mask.check().map_err(|message| bad_table(format!("masks[{k}]"), message))?;
+        }
         check_lights(&self.lights, g, self.media.as_ref())?;
         let objects = self.media.as_ref().map(|m| m.boundaries.len());
         check_surfaces(g, self.materials.len(), &self.lights.lights, objects)
@@ -165,14 +168,25 @@ fn face_table(mesh: &MeshShading) -> (usize, &'static str) {
     }
 }
 
-/// Mesh `m`'s normal and UV indices against its normals and UVs, and its two per-face tables against each other.
-fn check_mesh(m: usize, mesh: &MeshShading) -> Result<(), FrameError> {
+/// Mesh `m`'s normal and UV indices against its normals and UVs, its two per-face tables against each other,
+/// its tangents against its normals, and its mask against the `masks` cut-outs.
+fn check_mesh(m: usize, mesh: &MeshShading, masks: usize) -> Result<(), FrameError> {
     let (n, uv) = (mesh.normal_indices.len(), mesh.uv_indices.len());
     if n != 0 && uv != 0 && n != uv {
         return Err(bad_table(
             format!("meshes[{m}].uv_indices"),
             format!("has {uv} faces, but meshes[{m}].normal_indices has {n}"),
         ));
+    }
+    let (t, normals) = (mesh.tangents.len(), mesh.normals.len());
+    if t != 0 && t != normals {
+        return Err(bad_table(
+            format!("meshes[{m}].tangents"),
+            format!("has {t} tangents, but meshes[{m}].normals has {normals}: one tangent a normal"),
+        ));
+    }
+    if let Some(k) = mesh.mask {
+        within(k, masks, || format!("meshes[{m}].mask"), || "masks".into())?;
     }
     for (ixs, name, len, table) in [
         (&mesh.normal_indices, "normal_indices", mesh.normals.len(), "normals"),

@@ -14,6 +14,7 @@ pub mod tracer;
 
 use crate::Rgb;
 use crate::camera::Camera;
+use crate::geometry::mask::AlphaMask;
 use crate::geometry::mesh::Normals;
 use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
@@ -264,6 +265,7 @@ fn geometry(
     let mut prims: Vec<Primitive> = Vec::new();
     let mut planes = Vec::new();
     let mut meshes = Vec::new();
+    let mut masks = Vec::new();
     // Emission of each light-carrying primitive, by light index, before the BVH reorders primitives.
     let mut emitters: Vec<Emission> = Vec::new();
     let lods = lod::plan(scene);
@@ -272,7 +274,8 @@ fn geometry(
     for (i, o) in scene.objects.iter().enumerate() {
         let object = i as u32;
         if let Some(imp) = imported.get(i).and_then(Option::as_ref) {
-            gltf_materials += gltf_object(imp, object, gltf_materials, &mut prims, &mut meshes, &mut emitters);
+            gltf_materials +=
+                gltf_object(imp, object, gltf_materials, &mut prims, &mut meshes, &mut emitters, &mut masks);
             boundaries.extend(with_media.then_some(Boundary::Open));
             continue;
         }
@@ -349,11 +352,12 @@ fn geometry(
             boundaries.push(boundary);
         }
     }
-    Ok((Geometry::new(prims, planes, meshes), emitters, with_media.then_some(boundaries)))
+    Ok((Geometry::new(prims, planes, meshes).with_masks(masks), emitters, with_media.then_some(boundaries)))
 }
 
 /// The primitives of a glTF object: each imported mesh's triangles with its material (`material_base` plus its
-/// index in the import) and, where it emits, its triangle's emission. Returns the import's material count.
+/// index in the import) and, where it emits, its triangle's emission; its cut-outs join `masks`. Returns the
+/// import's material count.
 fn gltf_object(
     imp: &gltf::Imported,
     object: u32,
@@ -361,7 +365,10 @@ fn gltf_object(
     prims: &mut Vec<Primitive>,
     meshes: &mut Vec<MeshShading>,
     emitters: &mut Vec<Emission>,
+    masks: &mut Vec<AlphaMask>,
 ) -> u32 {
+    let mask_base = masks.len() as u32;
+    masks.extend(imp.masks.iter().cloned());
     for m in &imp.meshes {
         let mesh_index = meshes.len() as u32;
         let material = material_base + m.material;
@@ -379,7 +386,9 @@ fn gltf_object(
             };
             prims.push(Primitive { shape: Shape::Triangle(tri), material, light, object });
         }
-        meshes.push(m.mesh.shading.clone());
+        let mut shading = m.mesh.shading.clone();
+        shading.mask = shading.mask.map(|k| mask_base + k);
+        meshes.push(shading);
     }
     imp.materials.len() as u32
 }

@@ -46,6 +46,15 @@ impl Builder {
         self.accessors.len() - 1
     }
 
+    /// A `VEC4` float accessor (tangents); its index.
+    pub fn vec4(&mut self, v: &[[f32; 4]]) -> usize {
+        let bytes: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let view = self.view(&bytes);
+        self.accessors
+            .push(format!(r#"{{"bufferView":{view},"componentType":5126,"count":{},"type":"VEC4"}}"#, v.len()));
+        self.accessors.len() - 1
+    }
+
     /// A `VEC2` float accessor; its index.
     pub fn vec2(&mut self, v: &[[f32; 2]]) -> usize {
         let bytes: Vec<u8> = v.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();

@@ -31,7 +31,8 @@ mod forms;
 pub mod texels;
 
 pub use texels::{
-    ColorSpace, MAX_TEXTURE_SIDE, TexelImage, TexelImageError, Texels, TextureError, decode, decode_file, srgb_decode,
+    ColorSpace, MAX_TEXTURE_SIDE, TexelImage, TexelImageError, Texels, TextureError, decode, decode_alpha, decode_file,
+    srgb_decode,
 };
 
 use crate::Rgb;

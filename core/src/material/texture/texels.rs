@@ -185,6 +185,48 @@ pub fn decode_file(path: &Path, limit: u64) -> Result<TexelImage, TextureError> 
 /// one channel, others keep red, green and blue (alpha is dropped); 8- and 16-bit values stay integers (their
 /// colour space is the texture's business), float values stay floats.
 pub fn decode(bytes: &[u8], limit: u64) -> Result<TexelImage, TextureError> {
+    let img = decode_dynamic(bytes, limit)?;
+    let (width, height) = (img.width(), img.height());
+    use image::DynamicImage as D;
+    let (channels, texels) = match img {
+        D::ImageLuma8(i) => (1, Texels::U8(i.into_raw())),
+        D::ImageLumaA8(_) => (1, Texels::U8(img.to_luma8().into_raw())),
+        D::ImageRgb8(i) => (3, Texels::U8(i.into_raw())),
+        D::ImageLuma16(i) => (1, Texels::U16(i.into_raw())),
+        D::ImageLumaA16(_) => (1, Texels::U16(img.to_luma16().into_raw())),
+        D::ImageRgb16(i) => (3, Texels::U16(i.into_raw())),
+        D::ImageRgba16(_) => (3, Texels::U16(img.to_rgb16().into_raw())),
+        D::ImageRgb32F(i) => (3, Texels::F32(i.into_raw())),
+        D::ImageRgba32F(_) => (3, Texels::F32(img.to_rgb32f().into_raw())),
+        // RGBA8 and any layout added later.
+        other => (3, Texels::U8(other.to_rgb8().into_raw())),
+    };
+    let image = TexelImage { width, height, channels, texels };
+    image.check().map_err(|e| TextureError::Invalid(e.to_string()))?;
+    Ok(image)
+}
+
+/// The alpha channel of image bytes (as [`decode`] reads them), as a one-channel image of linear values (alpha is
+/// never sRGB-encoded): 8- and 16-bit values stay integers, float values floats. `None` when the image has no
+/// alpha channel, so is opaque everywhere.
+pub fn decode_alpha(bytes: &[u8], limit: u64) -> Result<Option<TexelImage>, TextureError> {
+    let img = decode_dynamic(bytes, limit)?;
+    if !img.color().has_alpha() {
+        return Ok(None);
+    }
+    let (width, height) = (img.width(), img.height());
+    let texels = match img.color().bytes_per_pixel() / img.color().channel_count() {
+        1 => Texels::U8(img.to_rgba8().pixels().map(|p| p.0[3]).collect()),
+        2 => Texels::U16(img.to_rgba16().pixels().map(|p| p.0[3]).collect()),
+        _ => Texels::F32(img.to_rgba32f().pixels().map(|p| p.0[3]).collect()),
+    };
+    let image = TexelImage { width, height, channels: 1, texels };
+    image.check().map_err(|e| TextureError::Invalid(e.to_string()))?;
+    Ok(Some(image))
+}
+
+/// The `image` crate's decoding of `bytes`, within [`MAX_TEXTURE_SIDE`] a side and `limit` bytes.
+fn decode_dynamic(bytes: &[u8], limit: u64) -> Result<image::DynamicImage, TextureError> {
     if bytes.is_empty() {
         return Err(TextureError::Invalid("the file is empty (0 bytes)".into()));
     }
@@ -210,21 +252,5 @@ pub fn decode(bytes: &[u8], limit: u64) -> Result<TexelImage, TextureError> {
     if width == 0 || height == 0 {
         return Err(TextureError::Invalid(format!("the image is {width}×{height}: it needs at least one texel")));
     }
-    use image::DynamicImage as D;
-    let (channels, texels) = match img {
-        D::ImageLuma8(i) => (1, Texels::U8(i.into_raw())),
-        D::ImageLumaA8(_) => (1, Texels::U8(img.to_luma8().into_raw())),
-        D::ImageRgb8(i) => (3, Texels::U8(i.into_raw())),
-        D::ImageLuma16(i) => (1, Texels::U16(i.into_raw())),
-        D::ImageLumaA16(_) => (1, Texels::U16(img.to_luma16().into_raw())),
-        D::ImageRgb16(i) => (3, Texels::U16(i.into_raw())),
-        D::ImageRgba16(_) => (3, Texels::U16(img.to_rgb16().into_raw())),
-        D::ImageRgb32F(i) => (3, Texels::F32(i.into_raw())),
-        D::ImageRgba32F(_) => (3, Texels::F32(img.to_rgb32f().into_raw())),
-        // RGBA8 and any layout added later.
-        other => (3, Texels::U8(other.to_rgb8().into_raw())),
-    };
-    let image = TexelImage { width, height, channels, texels };
-    image.check().map_err(|e| TextureError::Invalid(e.to_string()))?;
-    Ok(image)
+    Ok(img)
 }

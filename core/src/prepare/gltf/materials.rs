@@ -7,13 +7,17 @@
 //!   `KHR_materials_ior` (default 1.5), tinted by the base colour, as rough as the roughness factor.
 //! - A factor that multiplies a texture (base colour, normal scale) is baked into the texels: the image is
 //!   stored as linear floats times the factor, so that the texture lookup stays a lookup.
+//! - `alphaMode` MASK with a base colour texture whose image has alpha → an [`AlphaMask`] of that alpha, the
+//!   cutoff divided by the factor's alpha; the geometry cuts the faces away where it is below
+//!   (`crate::geometry::mask`). A factor alone below the cutoff drops the primitive (`super::nodes`).
 //!
 //! Image slots index [`super::Imported::images`]; preparing the scene offsets them into its texture list.
 
 use super::buffers;
 use super::types::{Import, ImportError};
 use crate::Rgb;
-use crate::material::texture::{ColorSpace, Filter, ImageRef, NormalMap, Texels, Wrap, decode};
+use crate::geometry::mask::AlphaMask;
+use crate::material::texture::{ColorSpace, Filter, ImageRef, NormalMap, Texels, Wrap, decode, decode_alpha};
 use crate::material::{Material, TexelImage, Texture};
 use glam::Vec2;
 use std::collections::BTreeMap;
@@ -92,13 +96,23 @@ fn scaled_normals(img: &TexelImage, scale: f32) -> TexelImage {
     TexelImage { width: img.width, height: img.height, channels: 3, texels: Texels::F32(v) }
 }
 
-/// The file's materials by index, then glTF's default material, and the images they read.
-pub(super) fn load(im: &mut Import<'_>, texture_limit: u64) -> Result<(Vec<Material>, Vec<TexelImage>), ImportError> {
+/// The file's materials by index, then glTF's default material, the images they read, and their cut-outs
+/// (`im.material_masks` says which material has which).
+pub(super) fn load(
+    im: &mut Import<'_>,
+    texture_limit: u64,
+) -> Result<(Vec<Material>, Vec<TexelImage>, Vec<AlphaMask>), ImportError> {
     let mut images = Images { decoded: BTreeMap::new(), slots: BTreeMap::new(), out: Vec::new(), limit: texture_limit };
     let mut out = Vec::new();
+    let mut masks = Vec::new();
     let doc = im.doc;
     for m in doc.materials() {
         out.push(material(im, &m, &mut images)?);
+        let mask = alpha_mask(im, &m, texture_limit)?;
+        im.material_masks.push(mask.map(|k| {
+            masks.push(k);
+            masks.len() as u32 - 1
+        }));
     }
     // glTF's default material (specification §3.9.6: metallic and roughness 1, white), which the document's
     // list does not hold.
@@ -111,7 +125,34 @@ pub(super) fn load(im: &mut Import<'_>, texture_limit: u64) -> Result<(Vec<Mater
         normal_map: None,
         two_sided: true,
     });
-    Ok((out, images.out))
+    im.material_masks.push(None);
+    Ok((out, images.out, masks))
+}
+
+/// The cut-out of material `m`: its base colour texture's alpha when `alphaMode` is MASK and the image has an
+/// alpha channel. The surface is present where `factor_alpha · texture_alpha ≥ alphaCutoff` (specification
+/// §3.9.4), so the mask's cutoff is `alphaCutoff / factor_alpha`. `None` when nothing can be cut: another mode,
+/// no texture, an image without alpha, a cutoff ≤ 0, or a factor below the cutoff (the primitive is dropped).
+fn alpha_mask(im: &mut Import<'_>, m: &gltf::Material<'_>, limit: u64) -> Result<Option<AlphaMask>, ImportError> {
+    let pbr = m.pbr_metallic_roughness();
+    let (cutoff, factor) = (m.alpha_cutoff().unwrap_or(0.5), pbr.base_color_factor()[3]);
+    let Some(info) = pbr.base_color_texture() else { return Ok(None) };
+    if m.alpha_mode() != gltf::material::AlphaMode::Mask || cutoff <= 0.0 || factor < cutoff {
+        return Ok(None);
+    }
+    let tex = info.texture();
+    let (bytes, name) = buffers::image_bytes(im, &tex.source(), limit)?;
+    let field = format!("images[{}]", tex.source().index());
+    let Some(alpha) =
+        decode_alpha(&bytes, limit).map_err(|source| ImportError::Texture { file: name, field, source })?
+    else {
+        return Ok(None);
+    };
+    if m.emissive_factor() != [0.0; 3] {
+        im.warn("an emissive material with alphaMode MASK emits from its whole faces, also where they are cut away");
+    }
+    let r = image_ref(im, &tex, 0, None);
+    Ok(Some(AlphaMask { alpha, wrap: r.wrap, filter: r.filter, cutoff: cutoff / factor }))
 }
 
 /// An image reference to slot `slot` with the sampler of `texture`.
@@ -185,13 +226,8 @@ fn material(im: &mut Import<'_>, m: &gltf::Material<'_>, images: &mut Images) ->
     if m.occlusion_texture().is_some() {
         tracing::info!("{}: occlusionTexture is not read: the renderer traces occlusion", im.file.display());
     }
-    match m.alpha_mode() {
-        gltf::material::AlphaMode::Blend => im.warn("alphaMode BLEND is not supported: those materials are opaque"),
-        gltf::material::AlphaMode::Mask if pbr.base_color_texture().is_some() => im.warn(
-            "alphaMode MASK reads the base colour factor's alpha only, not the texture's: a textured cut-out is opaque \
-             where the factor passes",
-        ),
-        _ => {}
+    if m.alpha_mode() == gltf::material::AlphaMode::Blend {
+        im.warn("alphaMode BLEND is not supported: those materials are opaque");
     }
     let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
     if let Some(t) = m.transmission()

@@ -135,10 +135,11 @@ pub(crate) fn import_unlogged(
         warned: BTreeSet::new(),
         texture_limit,
         emissive: Default::default(),
+        material_masks: Vec::new(),
     };
     unsupported_document_features(&mut im);
-    let (materials, images) = materials::load(&mut im, texture_limit)?;
-    let mut out = Imported { materials, images, ..Imported::default() };
+    let (materials, images, masks) = materials::load(&mut im, texture_limit)?;
+    let mut out = Imported { materials, images, masks, ..Imported::default() };
     nodes::walk(&mut im, world_from_object, &mut out)?;
     out.warnings = im.warned.into_iter().collect();
     Ok(out)

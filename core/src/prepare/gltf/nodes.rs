@@ -162,6 +162,19 @@ fn check_accessor(
     Ok(())
 }
 
+/// Requires each attribute of `counts` that a primitive has (a count above 0) to have one value a vertex, as
+/// POSITION's `vertices` (specification §3.7.2.1).
+fn check_counts(im: &Import<'_>, name: &str, vertices: usize, counts: &[(&str, usize)]) -> Result<(), ImportError> {
+    match counts.iter().find(|(_, c)| *c != 0 && *c != vertices) {
+        Some((attribute, c)) => Err(malformed(
+            im.file,
+            format!("{name}.attributes.{attribute} has {c} values, but POSITION has {vertices} vertices"),
+        )
+        .into()),
+        None => Ok(()),
+    }
+}
+
 /// Reads an accessor through `read`, requiring exactly its `count` items.
 fn read_all<T>(
     im: &Import<'_>,
@@ -208,12 +221,6 @@ fn primitive(
     {
         return Ok(None);
     }
-    if p.get(&Semantic::Tangents).is_some() && m.normal_texture().is_some() {
-        im.warn(
-            "TANGENT attributes are not read: normal maps use the tangent of the UVs (∂p/∂u), which MikkTSpace \
-             tangents match up to their smoothing",
-        );
-    }
     let buffers = &im.buffers;
     let reader = p.reader(|b| buffers.get(b.index()).map(Vec::as_slice));
     let pos_acc = p.get(&Semantic::Positions).ok_or_else(|| malformed(im.file, format!("{name} has no POSITION")))?;
@@ -227,6 +234,15 @@ fn primitive(
         }
         None => Vec::new(),
     };
+    // Without normals the faces shade flat and the tangents are ignored (specification §3.7.2.1).
+    let tangents = match p.get(&Semantic::Tangents) {
+        Some(a) if !normals.is_empty() => {
+            let what = format!("{name}.attributes.TANGENT");
+            check_accessor(im, &a, Dimensions::Vec4, &[DataType::F32], &what)?;
+            read_all(im, &a, &what, reader.read_tangents())?
+        }
+        _ => Vec::new(),
+    };
     let uvs = match p.get(&Semantic::TexCoords(0)) {
         Some(a) => {
             let what = format!("{name}.attributes.TEXCOORD_0");
@@ -236,6 +252,7 @@ fn primitive(
         None => Vec::new(),
     };
     let n = positions.len();
+    check_counts(im, &name, n, &[("NORMAL", normals.len()), ("TANGENT", tangents.len()), ("TEXCOORD_0", uvs.len())])?;
     let indices: Vec<u32> = match p.indices() {
         Some(a) => {
             let what = format!("{name}.indices");
@@ -259,27 +276,50 @@ fn primitive(
     let flip = world.matrix3.determinant() < 0.0;
     let faces: Vec<[u32; 3]> =
         indices.chunks_exact(3).map(|t| if flip { [t[0], t[2], t[1]] } else { [t[0], t[1], t[2]] }).collect();
-    let normal_from = world.matrix3.inverse().transpose();
-    let mut shading = MeshShading::default();
-    if !normals.is_empty() {
-        shading.normals =
-            normals.iter().map(|v| (normal_from * glam::Vec3A::from(*v)).normalize_or_zero().to_array()).collect();
-        shading.normal_indices = faces.clone();
-    }
-    if !uvs.is_empty() {
-        shading.uvs = uvs.iter().map(|[u, v]| [*u, 1.0 - *v]).collect();
-        shading.uv_indices = faces.clone();
-    }
+    let mut shading = shading(world, &faces, &normals, &tangents, &uvs);
     let at = |i: u32| world.transform_point3(Vec3::from(positions[i as usize]));
     let triangles: Vec<[Vec3; 3]> = faces.iter().map(|f| [at(f[0]), at(f[1]), at(f[2])]).collect();
     let emission = emission(im, &m, &faces, &shading.uvs)?;
     let material = m.index().map_or(im.doc.materials().len(), |i| i) as u32;
+    shading.mask = im.material_masks.get(material as usize).copied().flatten();
     Ok(Some(ImportedMesh {
         mesh: MeshData { triangles, shading },
         material,
         emission,
         two_sided_emission: m.double_sided(),
     }))
+}
+
+/// The shading data of a primitive's `faces` (already wound for `world`) from its object-space attributes, in
+/// world space: normals by the inverse transpose, tangents by the linear part, UVs flipped to photon's `v` up.
+/// A mirroring `world` turns the bitangent `w · (n × t)` around, so `w` changes sign with it.
+fn shading(
+    world: &Affine3A,
+    faces: &[[u32; 3]],
+    normals: &[[f32; 3]],
+    tangents: &[[f32; 4]],
+    uvs: &[[f32; 2]],
+) -> MeshShading {
+    let mut shading = MeshShading::default();
+    if !normals.is_empty() {
+        let normal_from = world.matrix3.inverse().transpose();
+        shading.normals =
+            normals.iter().map(|v| (normal_from * glam::Vec3A::from(*v)).normalize_or_zero().to_array()).collect();
+        shading.normal_indices = faces.to_vec();
+        let w_sign = if world.matrix3.determinant() < 0.0 { -1.0 } else { 1.0 };
+        shading.tangents = tangents
+            .iter()
+            .map(|[x, y, z, w]| {
+                let t = (world.matrix3 * glam::Vec3A::new(*x, *y, *z)).normalize_or_zero();
+                [t.x, t.y, t.z, if *w < 0.0 { -w_sign } else { w_sign }]
+            })
+            .collect();
+    }
+    if !uvs.is_empty() {
+        shading.uvs = uvs.iter().map(|[u, v]| [*u, 1.0 - *v]).collect();
+        shading.uv_indices = faces.to_vec();
+    }
+    shading
 }
 
 /// Each face's emitted radiance (the emissive texture read at its centroid's UV), or empty when the material

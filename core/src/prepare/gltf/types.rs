@@ -2,6 +2,7 @@
 //! the readers of buffers, materials and nodes share.
 
 use crate::Rgb;
+use crate::geometry::mask::AlphaMask;
 use crate::geometry::mesh::{MeshData, MeshError};
 use crate::material::texture::TextureError;
 use crate::material::{Material, TexelImage};
@@ -44,6 +45,8 @@ pub struct Imported {
     pub materials: Vec<Material>,
     /// The decoded images; the materials' image slots index this list.
     pub images: Vec<TexelImage>,
+    /// The cut-outs (`alphaMode` MASK with a textured alpha); the meshes' `shading.mask` indexes this list.
+    pub masks: Vec<AlphaMask>,
     /// The `KHR_lights_punctual` lights, in world space.
     pub lights: Vec<LightSpec>,
     /// The first perspective camera in node order.
@@ -97,6 +100,9 @@ pub(crate) struct Import<'a> {
     pub(super) texture_limit: u64,
     /// The emissive image of each material index read so far (`usize::MAX`: the default material).
     pub(super) emissive: std::collections::BTreeMap<usize, Option<(crate::material::ImageRef, TexelImage)>>,
+    /// The index into [`Imported::masks`] of each material's cut-out, by material index (the default material
+    /// last); filled by `materials::load`.
+    pub(super) material_masks: Vec<Option<u32>>,
 }
 
 impl Import<'_> {
