@@ -1,9 +1,12 @@
 #!/usr/bin/env python3
 """Writes scenes/gltf/showcase.glb, the glTF of scenes/gltf-showcase.toml: a floor with an embedded 8 x 8 checker
-texture (tiled 4 x 4), a rough gold sphere (metallic 1, roughness 0.35), a rough glass sphere and a smooth glass
-sphere (KHR_materials_transmission, KHR_materials_ior 1.5, roughness 0.3 and 0), a perspective camera, and
-KHR_lights_punctual lights: a spot light above the spheres (the key light) and a dim point light (a fill).
-About 40 KB.
+texture (tiled 4 x 4) and a normal texture of one pillow per checker cell, read in the frame of the floor's
+TANGENT attribute; a rough gold sphere (metallic 1, roughness 0.35), a rough glass sphere and a smooth glass
+sphere (KHR_materials_transmission, KHR_materials_ior 1.5, roughness 0.3 and 0); behind them a lattice screen,
+a cut-out (alphaMode MASK) whose base colour texture's alpha opens round holes; a perspective camera; and a
+KHR_lights_punctual spot light above the gold sphere. The spot's cone leaves out the smooth glass sphere, so the
+scene has no caustic of a point-like light through smooth glass, which no camera path can complete (the path
+tracer's image of it converges to the same as bdpt's). About 60 KB.
 
     python3 tools/make_gltf.py                      # from the repository root
     python3 tools/make_gltf.py -o /tmp/showcase.glb
@@ -21,14 +24,14 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 
 
-def png(width, height, texel):
-    """An 8-bit RGB PNG; texel(x, y) gives (r, g, b) with y from the top."""
+def png(width, height, texel, channels=3):
+    """An 8-bit RGB (or, with channels=4, RGBA) PNG; texel(x, y) gives (r, g, b[, a]) with y from the top."""
     raw = b"".join(b"\0" + bytes(c for x in range(width) for c in texel(x, y)) for y in range(height))
 
     def chunk(kind, data):
         return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
 
-    header = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    header = struct.pack(">IIBBBBB", width, height, 8, 2 if channels == 3 else 6, 0, 0, 0)
     return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 9)) + chunk(b"IEND", b"")
 
 
@@ -63,6 +66,39 @@ def floor(half=4.0, tiles=4.0):
     return pos, nor, uv, [(0, 1, 2), (0, 2, 3)]
 
 
+def screen(z=-1.6, half_width=3.5, height=2.4, hole=0.6):
+    """A vertical rectangle in the plane z, facing +z, from the floor up to `height`; its UVs tile the lattice
+    texture once every `hole` units, the image's top-left at the top-left corner."""
+    pos = [(-half_width, 0, z), (half_width, 0, z), (half_width, height, z), (-half_width, height, z)]
+    nor = [(0, 0, 1)] * 4
+    u, v = 2 * half_width / hole, height / hole
+    uv = [(0, v), (u, v), (u, 0), (0, 0)]
+    return pos, nor, uv, [(0, 1, 2), (0, 2, 3)]
+
+
+def pillow_normals(n=64, cells=8, strength=0.08):
+    """A tangent-space normal texture (glTF: x right, y up in the image) of n x n texels: a pillow
+    h = strength * sin(pi a) sin(pi b) in each of cells x cells cells, stored as (normal + 1) / 2."""
+    def texel(x, y):
+        side = n // cells
+        a = (x % side + 0.5) / side
+        b = 1.0 - (y % side + 0.5) / side
+        dx = strength * math.pi * math.cos(math.pi * a) * math.sin(math.pi * b)
+        dy = strength * math.pi * math.sin(math.pi * a) * math.cos(math.pi * b)
+        norm = math.sqrt(dx * dx + dy * dy + 1.0)
+        return tuple(round(255 * (c / norm + 1) / 2) for c in (-dx, -dy, 1.0))
+    return png(n, n, texel)
+
+
+def lattice(n=64, radius=0.36):
+    """An RGBA texture of one round hole (alpha 0) of `radius` (in tiles) in a pale wooden tile (alpha 1)."""
+    def texel(x, y):
+        r = math.hypot((x + 0.5) / n - 0.5, (y + 0.5) / n - 0.5)
+        grain = 215 + round(20 * math.sin(40 * (y + 0.5) / n))
+        return (grain, grain, grain, 0 if r < radius else 255)
+    return png(n, n, texel, channels=4)
+
+
 class Buffer:
     """The binary chunk, its buffer views and accessors."""
 
@@ -92,10 +128,13 @@ class Buffer:
         self.accessors.append({"bufferView": view, "componentType": 5123, "count": len(flat), "type": "SCALAR"})
         return len(self.accessors) - 1
 
-    def primitive(self, mesh, material):
+    def primitive(self, mesh, material, tangent=None):
+        """A triangle primitive; `tangent` (x, y, z, w), when given, is every vertex's TANGENT."""
         pos, nor, uv, tris = mesh
         attributes = {"POSITION": self.floats(pos, "VEC3"), "NORMAL": self.floats(nor, "VEC3"),
                       "TEXCOORD_0": self.floats(uv, "VEC2")}
+        if tangent is not None:
+            attributes["TANGENT"] = self.floats([tangent] * len(pos), "VEC4")
         return {"attributes": attributes, "indices": self.indices(tris), "material": material}
 
 
@@ -108,25 +147,33 @@ def look_down(pitch_deg):
 def document():
     buf = Buffer()
     checker = png(8, 8, lambda x, y: (200, 200, 200) if (x + y) % 2 == 0 else (40, 40, 48))
-    image = buf.view(checker)
+    images = [buf.view(checker), buf.view(pillow_normals()), buf.view(lattice())]
     ball = buf.primitive(sphere(0.7), 1)
+    # The floor's u runs along +x and its v along +z (glTF's v is down the image), so photon's up-the-image
+    # v' = 1 - v runs along -z: the bitangent w (n x t) = w (+y x +x) = -w z points up the image for w = +1.
+    floor_primitive = buf.primitive(floor(), 0, tangent=(1.0, 0.0, 0.0, 1.0))
     # The three spheres share one set of accessors, each mesh with its own material.
     meshes = [
-        {"name": "floor", "primitives": [buf.primitive(floor(), 0)]},
+        {"name": "floor", "primitives": [floor_primitive]},
         {"name": "rough gold", "primitives": [ball]},
         {"name": "rough glass", "primitives": [dict(ball, material=2)]},
         {"name": "smooth glass", "primitives": [dict(ball, material=3)]},
+        {"name": "lattice screen", "primitives": [buf.primitive(screen(), 4)]},
     ]
     glass = {"KHR_materials_transmission": {"transmissionFactor": 1.0}, "KHR_materials_ior": {"ior": 1.5}}
     materials = [
         {"name": "checker floor", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0,
-                                                           "roughnessFactor": 0.8}},
+                                                           "roughnessFactor": 0.8},
+         "normalTexture": {"index": 1}},
         {"name": "rough gold", "pbrMetallicRoughness": {"baseColorFactor": [1.0, 0.77, 0.34, 1.0],
                                                         "metallicFactor": 1.0, "roughnessFactor": 0.35}},
         {"name": "rough glass", "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.3},
          "extensions": glass},
         {"name": "smooth glass", "pbrMetallicRoughness": {"metallicFactor": 0.0, "roughnessFactor": 0.0},
          "extensions": glass},
+        {"name": "lattice", "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": True,
+         "pbrMetallicRoughness": {"baseColorTexture": {"index": 2}, "baseColorFactor": [0.8, 0.6, 0.4, 1.0],
+                                  "metallicFactor": 0.0, "roughnessFactor": 0.6}},
     ]
     # The camera 6.5 units in front at height 2.2, looking down at the spheres' centres (height 0.7).
     pitch = math.degrees(math.atan2(2.2 - 0.7, 6.5))
@@ -135,15 +182,17 @@ def document():
         {"name": "gold", "mesh": 1, "translation": [-1.6, 0.7, 0.0]},
         {"name": "rough glass", "mesh": 2, "translation": [0.0, 0.7, 0.0]},
         {"name": "smooth glass", "mesh": 3, "translation": [1.6, 0.7, 0.0]},
+        {"name": "lattice screen", "mesh": 4},
         {"name": "camera", "camera": 0, "translation": [0.0, 2.2, 6.5], "rotation": look_down(pitch)},
-        {"name": "spot", "translation": [0.0, 5.0, 1.0], "rotation": look_down(90.0 - math.degrees(math.atan2(1.0, 5.0))),
+        # Above the gold sphere and 1 in front, aimed at its centre: the cone (0.45 rad, 25.8 degrees) reaches
+        # the rough glass and the lattice, and stays 2.7 degrees clear of the smooth glass sphere.
+        {"name": "spot", "translation": [-1.6, 5.0, 1.0],
+         "rotation": look_down(90.0 - math.degrees(math.atan2(1.0, 4.3))),
          "extensions": {"KHR_lights_punctual": {"light": 0}}},
-        {"name": "fill", "translation": [-3.0, 3.0, 4.0], "extensions": {"KHR_lights_punctual": {"light": 1}}},
     ]
     lights = [
         {"name": "key", "type": "spot", "color": [1.0, 0.95, 0.85], "intensity": 60.0,
-         "spot": {"innerConeAngle": 0.35, "outerConeAngle": 0.6}},
-        {"name": "fill", "type": "point", "color": [0.8, 0.85, 1.0], "intensity": 6.0},
+         "spot": {"innerConeAngle": 0.25, "outerConeAngle": 0.45}},
     ]
     doc = {
         "asset": {"version": "2.0", "generator": "photon tools/make_gltf.py"},
@@ -156,9 +205,11 @@ def document():
         "cameras": [{"type": "perspective", "perspective": {"yfov": math.radians(40.0), "aspectRatio": 1.5,
                                                             "znear": 0.05}}],
         "extensions": {"KHR_lights_punctual": {"lights": lights}},
-        "images": [{"bufferView": image, "mimeType": "image/png"}],
-        "samplers": [{"magFilter": 9728, "wrapS": 10497, "wrapT": 10497}],
-        "textures": [{"source": 0, "sampler": 0}],
+        "images": [{"bufferView": v, "mimeType": "image/png"} for v in images],
+        # The checker nearest, the normals and the lattice's alpha bilinear (round holes), all repeating.
+        "samplers": [{"magFilter": 9728, "wrapS": 10497, "wrapT": 10497},
+                     {"magFilter": 9729, "wrapS": 10497, "wrapT": 10497}],
+        "textures": [{"source": 0, "sampler": 0}, {"source": 1, "sampler": 1}, {"source": 2, "sampler": 1}],
         "buffers": [{"byteLength": len(buf.data)}],
         "bufferViews": buf.views,
         "accessors": buf.accessors,

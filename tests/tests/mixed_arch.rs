@@ -150,7 +150,8 @@ fn aarch64_and_x86_64_workers_render_identical_strips() {
         ("sky.toml", &["--size", "32x20", "--spp", "2", "--integrator", "path"]),
         ("sky.toml", &["--size", "32x20", "--integrator", "vcm", "--passes", "2"]),
         ("sky.toml", &["--size", "32x20", "--integrator", "progressive", "--passes", "2", "--photons", "20000"]),
-        // A glTF file: its node transforms, metallic–roughness materials, embedded texture and punctual lights.
+        // A glTF file: its node transforms, metallic–roughness materials, embedded textures, a normal map in the
+        // frame of TANGENT attributes, a cut-out (alphaMode MASK) and a punctual spot light.
         ("gltf-showcase.toml", &["--size", "32x20", "--spp", "2", "--integrator", "path"]),
         ("gltf-showcase.toml", &["--size", "32x20", "--integrator", "vcm", "--passes", "2"]),
     ];

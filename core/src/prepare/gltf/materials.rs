@@ -14,7 +14,7 @@
 //! Image slots index [`super::Imported::images`]; preparing the scene offsets them into its texture list.
 
 use super::buffers;
-use super::types::{Import, ImportError};
+use super::types::{Import, ImportError, Imported};
 use crate::Rgb;
 use crate::geometry::mask::AlphaMask;
 use crate::material::texture::{ColorSpace, Filter, ImageRef, NormalMap, Texels, Wrap, decode, decode_alpha};
@@ -96,12 +96,9 @@ fn scaled_normals(img: &TexelImage, scale: f32) -> TexelImage {
     TexelImage { width: img.width, height: img.height, channels: 3, texels: Texels::F32(v) }
 }
 
-/// The file's materials by index, then glTF's default material, the images they read, and their cut-outs
-/// (`im.material_masks` says which material has which).
-pub(super) fn load(
-    im: &mut Import<'_>,
-    texture_limit: u64,
-) -> Result<(Vec<Material>, Vec<TexelImage>, Vec<AlphaMask>), ImportError> {
+/// An import holding the file's materials by index, then glTF's default material, the images they read, and
+/// their cut-outs (`im.material_masks` says which material has which); its other parts are empty.
+pub(super) fn load(im: &mut Import<'_>, texture_limit: u64) -> Result<Imported, ImportError> {
     let mut images = Images { decoded: BTreeMap::new(), slots: BTreeMap::new(), out: Vec::new(), limit: texture_limit };
     let mut out = Vec::new();
     let mut masks = Vec::new();
@@ -126,7 +123,7 @@ pub(super) fn load(
         two_sided: true,
     });
     im.material_masks.push(None);
-    Ok((out, images.out, masks))
+    Ok(Imported { materials: out, images: images.out, masks, ..Imported::default() })
 }
 
 /// The cut-out of material `m`: its base colour texture's alpha when `alphaMode` is MASK and the image has an
@@ -297,6 +294,10 @@ pub(super) fn emissive_image(
         return Ok(None);
     }
     check_tex_coord(im, info.tex_coord());
+    im.warn(
+        "emissiveTexture is read at each triangle's centroid: the emission is constant over each triangle, so a \
+         texture varies across a mesh only as finely as its triangles",
+    );
     let tex = info.texture();
     let image = tex.source();
     let (bytes, name) = buffers::image_bytes(im, &image, limit)?;

@@ -138,8 +138,7 @@ pub(crate) fn import_unlogged(
         material_masks: Vec::new(),
     };
     unsupported_document_features(&mut im);
-    let (materials, images, masks) = materials::load(&mut im, texture_limit)?;
-    let mut out = Imported { materials, images, masks, ..Imported::default() };
+    let mut out = materials::load(&mut im, texture_limit)?;
     nodes::walk(&mut im, world_from_object, &mut out)?;
     out.warnings = im.warned.into_iter().collect();
     Ok(out)

@@ -2,11 +2,13 @@
 //! scale, after its parent's: glTF 2.0 §3.5.3), and what it carries: mesh primitives as world-space triangles,
 //! the first perspective camera, `KHR_lights_punctual` lights.
 //!
-//! Positions are `f32` `VEC3`; normals `f32` `VEC3`, transformed by the inverse transpose and normalised; UVs
-//! (`TEXCOORD_0`, float or normalised integers) flipped to photon's `v`-up convention (`v' = 1 − v`); indices
-//! unsigned integers, each below the vertex count. A node whose world transform mirrors (negative determinant)
-//! has its triangles' winding reversed, as glTF asks, so faces keep their front. Without normals a primitive
-//! is flat shaded, as the specification asks.
+//! Positions are `f32` `VEC3`; normals `f32` `VEC3`, transformed by the inverse transpose and normalised;
+//! tangents `f32` `VEC4`, transformed by the linear part, their `w` the bitangent's sign; UVs (`TEXCOORD_0`, float
+//! or normalised integers) flipped to photon's `v`-up convention (`v' = 1 − v`); each attribute one value a
+//! vertex; indices unsigned integers, each below the vertex count. A node whose world transform mirrors
+//! (negative determinant) has its triangles' winding reversed, as glTF asks, so faces keep their front, and its
+//! tangents' `w` turned. Without normals a primitive is flat shaded and its tangents ignored, as the
+//! specification asks. A primitive whose material is a textured cut-out carries its mask (`materials`).
 
 use super::materials::{emission_at, emissive_image};
 use super::types::{Import, ImportError, Imported, ImportedCamera, ImportedMesh, malformed};
