@@ -19,7 +19,7 @@ use serde::de::DeserializeOwned;
 pub const MAGIC: [u8; 4] = *b"PHTN";
 
 /// Version of the blob format. Raise it whenever the encoding of any serialised type changes.
-pub const FORMAT_VERSION: u32 = 4;
+pub const FORMAT_VERSION: u32 = 5;
 
 const HEADER_LEN: usize = MAGIC.len() + 4;
 

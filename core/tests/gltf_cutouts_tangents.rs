@@ -29,8 +29,8 @@ fn rgba_png(n: u32, rgba: impl Fn(u32, u32) -> [u8; 4]) -> Vec<u8> {
 
 /// A GLB of the square `[−h, h]²` in y = `height`, facing down (−y) and both ways (`doubleSided`), with UVs over
 /// the whole texture `png`, an `alphaMode` MASK material of cutoff 0.5 whose base colour factor is
-/// `factor` (RGBA), and a nearest-texel sampler.
-fn masked_square(h: f32, height: f32, png: &[u8], factor: [f32; 4]) -> Vec<u8> {
+/// `factor` (RGBA), and a nearest-texel sampler; `extra` adds members to the material (`,"emissiveFactor":...`).
+fn masked_square_with(h: f32, height: f32, png: &[u8], factor: [f32; 4], extra: &str) -> Vec<u8> {
     let mut b = Builder::default();
     let p = b.vec3(&[[-h, height, -h], [h, height, -h], [h, height, h], [-h, height, h]]);
     // glTF's v runs down the image: (0, 0) is its top-left texel, at (−h, −h).
@@ -46,10 +46,15 @@ fn masked_square(h: f32, height: f32, png: &[u8], factor: [f32; 4]) -> Vec<u8> {
     b.member(&format!(
         r#""materials":[{{"alphaMode":"MASK","alphaCutoff":0.5,"doubleSided":true,
             "pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},"baseColorFactor":{factor:?},
-            "metallicFactor":1,"roughnessFactor":0.5}}}}]"#
+            "metallicFactor":1,"roughnessFactor":0.5}}{extra}}}]"#
     ));
     b.member(r#""nodes":[{"mesh":0}],"scenes":[{"nodes":[0]}]"#);
     b.glb()
+}
+
+/// [`masked_square_with`] without more material members.
+fn masked_square(h: f32, height: f32, png: &[u8], factor: [f32; 4]) -> Vec<u8> {
+    masked_square_with(h, height, png, factor, "")
 }
 
 /// The prepared scene of `toml` with `glb` written beside it as `square.glb`.
@@ -130,6 +135,21 @@ fn the_base_colour_factors_alpha_multiplies_the_textures() {
 }
 
 #[test]
+fn an_emissive_cut_out_keeps_its_faces_whole_and_says_so() {
+    // Light sampling and photon emission pick points over whole faces: cutting only the hit queries would make
+    // the methods disagree, so the faces stay whole.
+    let png = rgba_png(2, |x, _| [255, 255, 255, if x == 0 { 0 } else { 255 }]);
+    let glb = masked_square_with(1.0, 0.0, &png, [1.0; 4], r#","emissiveFactor":[1,1,1]"#);
+    let (_, path, prep) = prepared("cutout-emissive", RAYS_SCENE, &glb);
+    assert!(prep.geometry.masks.is_empty());
+    let hit = prep.geometry.intersect(&Ray::new(Vec3A::new(-0.5, 2.0, 0.1), Vec3A::NEG_Y), 10.0).unwrap();
+    assert!((hit.t - 2.0).abs() < 1e-4, "the transparent half was cut");
+    let file = path.with_file_name("square.glb");
+    let imported = photon_core::prepare::gltf::import(&file, &glam::Affine3A::IDENTITY, u64::MAX, u64::MAX).unwrap();
+    assert!(imported.warnings.iter().any(|w| w.contains("emissive") && w.contains("MASK")), "{:?}", imported.warnings);
+}
+
+#[test]
 fn an_image_without_alpha_cuts_nothing() {
     let img = image::RgbImage::from_pixel(2, 2, image::Rgb([10, 10, 10]));
     let mut png = std::io::Cursor::new(Vec::new());
@@ -196,13 +216,16 @@ fn the_sun_through_a_half_open_cut_out_lights_half_the_floor_in_every_method() {
     let (scene, path, _) = prepared("cutout-shadow", SHADOW_SCENE, &masked_square(2.0, 1.0, &png, [1.0; 4]));
     let expected = 0.5 * 0.5 / std::f64::consts::PI;
     for (method, budget, tolerance) in [
-        (Method::Direct, 64, 0.01),
-        (Method::Path, 64, 0.01),
-        (Method::Bdpt, 64, 0.01),
-        (Method::Lt, 64, 0.03),
-        (Method::Vcm, 64, 0.02),
-        (Method::PhotonMap, 1, 0.03),
-        (Method::Progressive, 16, 0.03),
+        // Direct light only: exact but for the float sums.
+        (Method::Direct, 64, 1e-4),
+        // The grazing reflection adds 0.15 %; the rest is noise (lt's most: 1.1 % at 64 passes).
+        (Method::Path, 64, 0.005),
+        (Method::Bdpt, 64, 0.005),
+        (Method::Vcm, 64, 0.005),
+        (Method::Progressive, 16, 0.005),
+        (Method::FinalGather, 4, 0.01),
+        (Method::PhotonMap, 1, 0.01),
+        (Method::Lt, 64, 0.02),
     ] {
         let mean = common::image_mean(&common::render_method(&scene, &path, method, budget));
         let rel = mean / expected - 1.0;

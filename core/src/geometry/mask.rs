@@ -18,8 +18,9 @@ pub struct AlphaMask {
     pub wrap: Wrap,
     /// Reconstruction between texel centres, as that texture's.
     pub filter: Filter,
-    /// The surface is present where `alpha ≥ cutoff` (glTF's `alphaCutoff` divided by the base colour factor's
-    /// alpha, which multiplies the texture's).
+    /// What multiplies the texture's alpha: the base colour factor's alpha.
+    pub factor: f32,
+    /// The surface is present where `factor · alpha ≥ cutoff` (glTF's `alphaCutoff`).
     pub cutoff: f32,
 }
 
@@ -37,10 +38,10 @@ impl AlphaMask {
             filter: self.filter,
             colorspace: None,
         };
-        image.lookup(&self.alpha, uv, ColorSpace::Linear).x >= self.cutoff
+        self.factor * image.lookup(&self.alpha, uv, ColorSpace::Linear).x >= self.cutoff
     }
 
-    /// Checks the image (sizes, one channel) and the cutoff (finite), saying what is wrong.
+    /// Checks the image (sizes, one channel), the factor and the cutoff (finite), saying what is wrong.
     ///
     /// # Errors
     /// A text naming the fault.
@@ -49,8 +50,8 @@ impl AlphaMask {
         if self.alpha.channels != 1 {
             return Err(format!("an alpha mask has one channel, not {}", self.alpha.channels));
         }
-        if !self.cutoff.is_finite() {
-            return Err(format!("the alpha cutoff {} is not finite", self.cutoff));
+        if !self.cutoff.is_finite() || !self.factor.is_finite() {
+            return Err(format!("the alpha factor {} and cutoff {} must be finite", self.factor, self.cutoff));
         }
         Ok(())
     }
@@ -65,13 +66,15 @@ mod tests {
     fn the_surface_is_present_where_alpha_reaches_the_cutoff() {
         // Two texels side by side: alpha 0.2 on the left, 0.6 on the right (u = 0.25 and 0.75).
         let alpha = TexelImage { width: 2, height: 1, channels: 1, texels: Texels::U8(vec![51, 153]) };
-        let mask = AlphaMask { alpha, wrap: Wrap::Clamp, filter: Filter::Nearest, cutoff: 0.5 };
+        let mask = AlphaMask { alpha, wrap: Wrap::Clamp, filter: Filter::Nearest, factor: 1.0, cutoff: 0.5 };
         assert!(!mask.covers(Vec2::new(0.25, 0.5)));
         assert!(mask.covers(Vec2::new(0.75, 0.5)));
         // Bilinear: halfway between the centres alpha is 0.4, below; at u = 0.7 it is 0.56, above.
         let bilinear = AlphaMask { filter: Filter::Bilinear, ..mask.clone() };
         assert!(!bilinear.covers(Vec2::new(0.5, 0.5)));
         assert!(bilinear.covers(Vec2::new(0.7, 0.5)));
-        assert!(AlphaMask { cutoff: 0.2, ..mask }.covers(Vec2::new(0.25, 0.5)));
+        assert!(AlphaMask { cutoff: 0.2, ..mask.clone() }.covers(Vec2::new(0.25, 0.5)));
+        // The factor multiplies: 0.8 · 0.6 = 0.48 is below 0.5.
+        assert!(!AlphaMask { factor: 0.8, ..mask }.covers(Vec2::new(0.75, 0.5)));
     }
 }

@@ -7,8 +7,8 @@
 //!   `KHR_materials_ior` (default 1.5), tinted by the base colour, as rough as the roughness factor.
 //! - A factor that multiplies a texture (base colour, normal scale) is baked into the texels: the image is
 //!   stored as linear floats times the factor, so that the texture lookup stays a lookup.
-//! - `alphaMode` MASK with a base colour texture whose image has alpha → an [`AlphaMask`] of that alpha, the
-//!   cutoff divided by the factor's alpha; the geometry cuts the faces away where it is below
+//! - `alphaMode` MASK with a base colour texture whose image has alpha → an [`AlphaMask`] of that alpha and the
+//!   factor's; the geometry cuts the faces away where their product is below the cutoff
 //!   (`crate::geometry::mask`). A factor alone below the cutoff drops the primitive (`super::nodes`).
 //!
 //! Image slots index [`super::Imported::images`]; preparing the scene offsets them into its texture list.
@@ -128,8 +128,9 @@ pub(super) fn load(im: &mut Import<'_>, texture_limit: u64) -> Result<Imported, 
 
 /// The cut-out of material `m`: its base colour texture's alpha when `alphaMode` is MASK and the image has an
 /// alpha channel. The surface is present where `factor_alpha · texture_alpha ≥ alphaCutoff` (specification
-/// §3.9.4), so the mask's cutoff is `alphaCutoff / factor_alpha`. `None` when nothing can be cut: another mode,
-/// no texture, an image without alpha, a cutoff ≤ 0, or a factor below the cutoff (the primitive is dropped).
+/// §3.9.4). `None` when nothing can be cut: another mode, no texture, an image without alpha, a cutoff ≤ 0, or a
+/// factor below the cutoff (the primitive is dropped); and for an emissive material, whose faces are kept whole
+/// (with a warning) because light sampling and photon emission pick points over the whole face.
 fn alpha_mask(im: &mut Import<'_>, m: &gltf::Material<'_>, limit: u64) -> Result<Option<AlphaMask>, ImportError> {
     let pbr = m.pbr_metallic_roughness();
     let (cutoff, factor) = (m.alpha_cutoff().unwrap_or(0.5), pbr.base_color_factor()[3]);
@@ -146,10 +147,14 @@ fn alpha_mask(im: &mut Import<'_>, m: &gltf::Material<'_>, limit: u64) -> Result
         return Ok(None);
     };
     if m.emissive_factor() != [0.0; 3] {
-        im.warn("an emissive material with alphaMode MASK emits from its whole faces, also where they are cut away");
+        im.warn(
+            "an emissive material with alphaMode MASK is drawn without its texture's cut-out: light sampling and \
+             photon emission pick points over whole faces, so every method sees the whole face",
+        );
+        return Ok(None);
     }
     let r = image_ref(im, &tex, 0, None);
-    Ok(Some(AlphaMask { alpha, wrap: r.wrap, filter: r.filter, cutoff: cutoff / factor }))
+    Ok(Some(AlphaMask { alpha, wrap: r.wrap, filter: r.filter, factor, cutoff }))
 }
 
 /// An image reference to slot `slot` with the sampler of `texture`.

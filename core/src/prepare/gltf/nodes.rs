@@ -217,6 +217,9 @@ fn primitive(
     if p.morph_targets().len() > 0 {
         im.warn("morph targets are not supported: meshes keep their base shape");
     }
+    if p.get(&Semantic::Colors(0)).is_some() {
+        im.warn("COLOR_0 vertex colours are not read: the base colour and its alpha come from the factor and texture");
+    }
     let m = p.material();
     if m.alpha_mode() == gltf::material::AlphaMode::Mask
         && m.pbr_metallic_roughness().base_color_factor()[3] < m.alpha_cutoff().unwrap_or(0.5)
