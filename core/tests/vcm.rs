@@ -121,7 +121,7 @@ fn stored_paths(prep: &Prepared, count: usize) -> Vec<StoredPath> {
         let Some(light) = prep.geometry.intersect(&last.hit.spawn_ray(w), f32::INFINITY) else { continue };
         let wl = -w;
         if light.light == NONE
-            || prep.lights.lights[light.light as usize].le(&light, wl) == Vec3A::ZERO
+            || prep.lights.lights[light.light as usize].le(&prep.light_scene(), &light, wl) == Vec3A::ZERO
             || last.bsdf.f(-ray.d, w, TransportMode::Radiance) == Vec3A::ZERO
         {
             continue;

@@ -226,6 +226,18 @@ impl Geometry {
         }
     }
 
+    /// The texture coordinates of point `p` on bounded primitive `prim`: a mesh triangle's UVs interpolated at
+    /// `p`'s barycentrics; zero for other shapes and meshes without UVs (what a textured area light reads,
+    /// [`crate::light::Light::le_at`]).
+    pub fn uv_at(&self, prim: u32, p: Vec3A) -> Vec2 {
+        let Some(Shape::Triangle(tri)) = self.prims.get(prim as usize).map(|pr| pr.shape) else { return Vec2::ZERO };
+        let Some(m) = self.meshes.get(tri.mesh as usize) else { return Vec2::ZERO };
+        let Some(ix) = m.uv_indices.get(tri.face as usize) else { return Vec2::ZERO };
+        let (b1, b2) = tri.barycentrics(p);
+        let w = [1.0 - b1 - b2, b1, b2];
+        (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * Vec2::from_array(m.uvs[ix[k] as usize]))
+    }
+
     /// Whether mesh face `tri` is present at barycentrics `b`: it has no cut-out, no UVs, or its mask covers the
     /// UVs interpolated there.
     fn covers(&self, tri: &shapes::Triangle, b: Vec2) -> bool {

@@ -122,7 +122,7 @@ pub(super) fn emission(prep: &Prepared, hit: &Hit, ray: &Ray, prev_delta: bool, 
         return (Rgb::ZERO, 0.0);
     }
     let Some(light) = prep.lights.lights.get(hit.light as usize) else { return (Rgb::ZERO, 0.0) };
-    let le = light.le(hit, -ray.d);
+    let le = light.le(&prep.light_scene(), hit, -ray.d);
     if le == Rgb::ZERO || prev_delta {
         return (le, 1.0);
     }

@@ -66,8 +66,9 @@ impl LightPoint {
         let (i, pmf) = prep.lights.choose(u)?;
         let lp = match prep.lights.lights[i] {
             l @ (Light::Point { p, .. } | Light::Spot { p, .. }) => LightPoint::Point { p, light: l },
-            Light::Area { prim, le, two_sided, area } => {
+            l @ Light::Area { prim, two_sided, area, .. } => {
                 let (p, p_error, n) = prep.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
+                let le = l.le_at(&prep.light_scene(), p);
                 LightPoint::Area { p, p_error, n, le, two_sided, area }
             }
             // Refused in scenes with media (`Scene::check`).
@@ -236,7 +237,7 @@ fn emission_from_medium(prep: &Prepared, v: &Scattering, hit: &crate::geometry::
     }
     let light = hit.light as usize;
     let Some(l @ &Light::Area { area, .. }) = prep.lights.lights.get(light) else { return (Rgb::ZERO, 0.0) };
-    let le = l.le(hit, -ray.d);
+    let le = l.le(&prep.light_scene(), hit, -ray.d);
     if le == Rgb::ZERO {
         return (le, 0.0);
     }

@@ -86,12 +86,15 @@ pub enum Light {
     Area {
         /// Index into [`Geometry::prims`].
         prim: u32,
-        /// Emitted radiance.
+        /// Emitted radiance; with `image`, its scale.
         le: Rgb,
         /// Emits from both sides.
         two_sided: bool,
         /// Surface area.
         area: f32,
+        /// An image whose texels multiply `le` at each point's texture coordinates (glTF's
+        /// `emissiveTexture`), or `None` for a constant emitter.
+        image: Option<EmissionImage>,
     },
     /// Light from infinitely far along one direction.
     Directional {
@@ -116,6 +119,39 @@ pub enum Light {
         /// The scene's bounding sphere, from which photons leave.
         bounds: BoundingSphere,
     },
+}
+
+/// The image of a textured area light: a texture slot read in sRGB at a point's texture coordinates, and the
+/// image's mean, which stands for the texels in the light's power (its share of light choices and photons; the
+/// samples themselves carry the texels they read, so any positive mean leaves the estimates unbiased).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct EmissionImage {
+    /// The texture slot.
+    pub slot: u32,
+    /// Folding outside `[0, 1]`.
+    pub wrap: crate::material::texture::Wrap,
+    /// Reconstruction between texel centres.
+    pub filter: crate::material::texture::Filter,
+    /// The mean of the image's texels (linear).
+    pub mean: Rgb,
+}
+
+impl EmissionImage {
+    /// The image's linear value at texture coordinates `uv`; zero when the slot is missing.
+    #[inline]
+    pub fn at(&self, textures: &[TexelImage], uv: Vec2) -> Rgb {
+        let Some(img) = textures.get(self.slot as usize) else { return Rgb::ZERO };
+        let r = crate::material::texture::ImageRef {
+            file: std::path::PathBuf::new(),
+            slot: self.slot,
+            scale: Vec2::ONE,
+            offset: Vec2::ZERO,
+            wrap: self.wrap,
+            filter: self.filter,
+            colorspace: None,
+        };
+        r.lookup(img, uv, crate::material::texture::ColorSpace::Srgb)
+    }
 }
 
 /// A bounding sphere of the scene.
@@ -230,7 +266,10 @@ impl Light {
             Light::Spot { intensity, cos_outer, cos_inner, .. } => {
                 2.0 * PI * (1.0 - 0.5 * (cos_inner + cos_outer)) * intensity
             }
-            Light::Area { le, two_sided, area, .. } => (if two_sided { 2.0 } else { 1.0 }) * PI * area * le,
+            Light::Area { le, two_sided, area, image, .. } => {
+                let texels = image.map_or(Rgb::ONE, |i| i.mean);
+                (if two_sided { 2.0 } else { 1.0 }) * PI * area * le * texels
+            }
             Light::Directional { irradiance, bounds, .. } => irradiance / bounds.disc_pdf(),
             Light::Environment { mean, bounds, .. } => 4.0 * PI * mean / bounds.disc_pdf(),
         }
@@ -238,10 +277,12 @@ impl Light {
 
     /// Whether [`Light::sample_le`] samples rays exactly in proportion to their emission, so that every
     /// sample's weight `beta` is the light's power (with `pick` = 1): true of point, area and directional lights
-    /// and a constant environment, not of a spot light's falloff or an environment image's colours.
+    /// and a constant environment, not of a spot light's falloff, a textured area light's or an environment
+    /// image's colours.
     pub fn emits_as_sampled(&self) -> bool {
         match *self {
             Light::Spot { .. } => false,
+            Light::Area { image, .. } => image.is_none(),
             Light::Environment { image, .. } => image == NONE,
             _ => true,
         }
@@ -276,9 +317,23 @@ impl Light {
 
     /// Emitted radiance leaving an area light's surface at `hit` towards `wo`.
     #[inline]
-    pub fn le(&self, hit: &Hit, wo: Vec3A) -> Rgb {
+    pub fn le(&self, scene: &LightScene, hit: &Hit, wo: Vec3A) -> Rgb {
         match *self {
-            Light::Area { le, two_sided, .. } if two_sided || wo.dot(hit.n) > 0.0 => le,
+            Light::Area { le, two_sided, image, .. } if two_sided || wo.dot(hit.n) > 0.0 => match image {
+                None => le,
+                Some(i) => le * i.at(scene.textures, hit.uv),
+            },
+            _ => Rgb::ZERO,
+        }
+    }
+
+    /// An area light's emitted radiance at point `p` of its surface (on its emitting side): `le`, times the
+    /// image at `p`'s texture coordinates for a textured light; zero for other lights.
+    #[inline]
+    pub fn le_at(&self, scene: &LightScene, p: Vec3A) -> Rgb {
+        match *self {
+            Light::Area { le, image: None, .. } => le,
+            Light::Area { prim, le, image: Some(i), .. } => le * i.at(scene.textures, scene.geometry.uv_at(prim, p)),
             _ => Rgb::ZERO,
         }
     }
@@ -341,7 +396,7 @@ impl Light {
                 }
                 Some(LightSample { wi, dist, li: intensity / dist2, pdf: 1.0, delta: true, p: lp })
             }
-            Light::Area { prim, le, two_sided, area } => {
+            Light::Area { prim, two_sided, area, .. } => {
                 let (lp, lp_error, ln) = scene.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
                 let d = lp - p;
                 let dist2 = d.length_squared();
@@ -358,7 +413,8 @@ impl Light {
                 let towards = if cos_l > 0.0 { ln } else { -ln };
                 // Off the light by its sampled point's error bound (pbrt-v4 §6.8.6), towards the shaded point.
                 let p = crate::math::offset_ray_origin_by_error(lp, lp_error, ln, towards);
-                Some(LightSample { wi, dist, li: le, pdf, delta: false, p })
+                let li = self.le_at(scene, lp);
+                (li != Rgb::ZERO).then_some(LightSample { wi, dist, li, pdf, delta: false, p })
             }
             Light::Directional { d, irradiance, .. } => {
                 Some(LightSample { wi: -d, dist: f32::INFINITY, li: irradiance, pdf: 1.0, delta: true, p })
@@ -406,9 +462,10 @@ impl Light {
                 let beta = self.intensity(d) / pdf;
                 (beta != Rgb::ZERO).then(|| at_light(Ray::new(p, d), beta, pdf, pick, true, false))
             }
-            Light::Area { prim, le, two_sided, .. } => {
+            Light::Area { prim, two_sided, .. } => {
                 let pr = scene.geometry.prims.get(prim as usize)?;
                 let (p, p_error, n) = pr.shape.sample_area_with_error(u);
+                let le = self.le_at(scene, p);
                 let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
                 let local = cosine_hemisphere(u2);
                 let d = Frame::from_normal(side).to_world(local);

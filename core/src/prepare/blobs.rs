@@ -325,7 +325,7 @@ impl Prepared {
     ) -> Result<Self, FrameError> {
         let s = SceneOwned::decode(scene, limit)?;
         check_slots(&s.materials, textures.len())?;
-        check_environment(&s.lights, &textures)?;
+        check_light_textures(&s.lights, &textures)?;
         let (geometry, materials, lights, media) = (s.geometry, s.materials, s.lights, s.media);
         Ok(Self { camera, geometry, materials, lights, settings, photons: None, media, textures })
     }
@@ -345,7 +345,7 @@ impl Prepared {
         let photons = photons.map(|p| codec::decode(p, limit)).transpose()?;
         let textures = decode_textures(textures, limit)?;
         check_slots(&s.materials, textures.len())?;
-        check_environment(&s.lights, &textures)?;
+        check_light_textures(&s.lights, &textures)?;
         Ok(Self {
             camera: f.camera,
             geometry: s.geometry,
@@ -390,8 +390,16 @@ fn check_slots(materials: &[Material], n: usize) -> Result<(), FrameError> {
     Ok(())
 }
 
-/// The environment's image slot below the texture count, and its distribution made for that image's size.
-fn check_environment(lights: &LightSet, textures: &[TexelImage]) -> Result<(), FrameError> {
+/// Each textured area light's image slot and the environment's below the texture count, and the
+/// environment's distribution made for that image's size.
+fn check_light_textures(lights: &LightSet, textures: &[TexelImage]) -> Result<(), FrameError> {
+    for (l, light) in lights.lights.iter().enumerate() {
+        if let Light::Area { image: Some(e), .. } = light
+            && e.slot as usize >= textures.len()
+        {
+            return Err(FrameError::Textures(format!("light {l} reads texture {} of {}", e.slot, textures.len())));
+        }
+    }
     let Some((_, &Light::Environment { image, .. })) = lights.environment() else { return Ok(()) };
     if image == NONE {
         return Ok(());

@@ -18,7 +18,7 @@ use crate::geometry::mask::AlphaMask;
 use crate::geometry::mesh::Normals;
 use crate::geometry::shapes::{Plane, Shape, Sphere, Triangle};
 use crate::geometry::{Geometry, MeshShading, NONE, PlanePrimitive, Primitive};
-use crate::light::{BoundingSphere, Light, LightScene, LightSet, SkyDistribution};
+use crate::light::{BoundingSphere, EmissionImage, Light, LightScene, LightSet, SkyDistribution};
 use crate::material::{Material, TexelImage};
 use crate::math::fmath;
 use crate::medium::{Boundary, Media, Medium};
@@ -249,7 +249,11 @@ fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<
 }
 
 /// Surfaces, emitters (as [`geometry`]) and, when the scene has media, what each object separates.
-type GeometryParts = (Geometry, Vec<Emission>, Option<Vec<Boundary>>);
+type GeometryParts = (Geometry, Vec<Emitter>, Option<Vec<Boundary>>);
+
+/// What one light-carrying primitive emits: its radiance and sides, and the image that multiplies the radiance
+/// (a glTF `emissiveTexture`).
+type Emitter = (Emission, Option<EmissionImage>);
 
 /// The scene's surfaces under one BVH, the emission of each light-carrying primitive by its light index
 /// (each primitive's `light` holds that index until [`lights`] renumbers it), and when the scene has media,
@@ -267,7 +271,7 @@ fn geometry(
     let mut meshes = Vec::new();
     let mut masks = Vec::new();
     // Emission of each light-carrying primitive, by light index, before the BVH reorders primitives.
-    let mut emitters: Vec<Emission> = Vec::new();
+    let mut emitters: Vec<Emitter> = Vec::new();
     let lods = lod::plan(scene);
     // glTF objects' materials follow the scene's, object by object (`textures::load_with`).
     let mut gltf_materials = scene.materials.len() as u32;
@@ -289,7 +293,7 @@ fn geometry(
         let mut push = |shape: Shape, emission: &Option<Emission>| {
             let light = match emission {
                 Some(e) if e.radiance.max_element() > 0.0 && shape.area() > 0.0 => {
-                    emitters.push(*e);
+                    emitters.push((*e, None));
                     (emitters.len() - 1) as u32
                 }
                 _ => NONE,
@@ -364,7 +368,7 @@ fn gltf_object(
     material_base: u32,
     prims: &mut Vec<Primitive>,
     meshes: &mut Vec<MeshShading>,
-    emitters: &mut Vec<Emission>,
+    emitters: &mut Vec<Emitter>,
     masks: &mut Vec<AlphaMask>,
 ) -> u32 {
     let mask_base = masks.len() as u32;
@@ -379,7 +383,8 @@ fn gltf_object(
             }
             let light = match m.emission.get(face) {
                 Some(e) if e.max_element() > 0.0 => {
-                    emitters.push(Emission { radiance: (*e).into(), two_sided: m.two_sided_emission });
+                    let emission = Emission { radiance: (*e).into(), two_sided: m.two_sided_emission };
+                    emitters.push((emission, m.emission_image));
                     (emitters.len() - 1) as u32
                 }
                 _ => NONE,
@@ -487,7 +492,7 @@ fn level_of_detail(
 fn lights(
     specs: &[LightSpec],
     geometry: &mut Geometry,
-    emitters: &[Emission],
+    emitters: &[Emitter],
     images: &[TexelImage],
     env_slot: u32,
 ) -> LightSet {
@@ -495,7 +500,7 @@ fn lights(
     let mut area_lights: Vec<(u32, Light)> = Vec::new();
     for (pi, p) in geometry.prims.iter().enumerate() {
         if p.light != NONE {
-            let e = emitters[p.light as usize];
+            let (e, image) = emitters[p.light as usize];
             area_lights.push((
                 p.light,
                 Light::Area {
@@ -503,6 +508,7 @@ fn lights(
                     le: Rgb::from(e.radiance),
                     two_sided: e.two_sided,
                     area: p.shape.area(),
+                    image,
                 },
             ));
         }

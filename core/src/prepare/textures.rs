@@ -80,6 +80,11 @@ pub fn load_with(
             }
             materials.push(m);
         }
+        for mesh in &mut imp.meshes {
+            if let Some(e) = &mut mesh.emission_image {
+                e.slot = e.slot.saturating_add(offset);
+            }
+        }
         images.append(&mut imp.images);
     }
     Ok((materials, images, env_slot))

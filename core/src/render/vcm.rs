@@ -415,7 +415,7 @@ struct CameraVertex<'a> {
 /// that end the path on the light by sampling it (eqs. 42–43); in full when the camera sees the light directly.
 fn emission(prep: &Prepared, it: &Iteration, hit: &Hit, wo: Vec3A, state: &MisState) -> Rgb {
     let Some(light) = prep.lights.lights.get(hit.light as usize) else { return Rgb::ZERO };
-    let le = light.le(hit, wo);
+    let le = light.le(&prep.light_scene(), hit, wo);
     if le == Rgb::ZERO || state.len == 1 {
         return le;
     }

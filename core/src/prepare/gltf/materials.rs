@@ -17,6 +17,7 @@ use super::buffers;
 use super::types::{Import, ImportError, Imported};
 use crate::Rgb;
 use crate::geometry::mask::AlphaMask;
+use crate::light::EmissionImage;
 use crate::material::texture::{ColorSpace, Filter, ImageRef, NormalMap, Texels, Wrap, decode, decode_alpha};
 use crate::material::{Material, TexelImage, Texture};
 use glam::Vec2;
@@ -105,6 +106,8 @@ pub(super) fn load(im: &mut Import<'_>, texture_limit: u64) -> Result<Imported, 
     let doc = im.doc;
     for m in doc.materials() {
         out.push(material(im, &m, &mut images)?);
+        let emission = emission_image(im, &m, &mut images)?;
+        im.material_emission.push(emission);
         let mask = alpha_mask(im, &m, texture_limit)?;
         im.material_masks.push(mask.map(|k| {
             masks.push(k);
@@ -123,6 +126,7 @@ pub(super) fn load(im: &mut Import<'_>, texture_limit: u64) -> Result<Imported, 
         two_sided: true,
     });
     im.material_masks.push(None);
+    im.material_emission.push(None);
     Ok(Imported { materials: out, images: images.out, masks, ..Imported::default() })
 }
 
@@ -275,38 +279,37 @@ fn material(im: &mut Import<'_>, m: &gltf::Material<'_>, images: &mut Images) ->
     })
 }
 
-/// The emission of material `m` at texture coordinates `uv`: `emissiveFactor × emissive_strength ×` its
-/// emissive texture `image` (sRGB) there, at least 0.
-pub(super) fn emission_at(m: &gltf::Material<'_>, image: Option<&(ImageRef, TexelImage)>, uv: Vec2) -> Rgb {
+/// The emitted radiance of material `m` before its texture: `emissiveFactor × emissive_strength`, at least 0.
+pub(super) fn emission_scale(m: &gltf::Material<'_>) -> Rgb {
     let f = m.emissive_factor();
-    let strength = m.emissive_strength().unwrap_or(1.0);
-    let mut e = Rgb::new(f[0], f[1], f[2]) * strength;
-    if let Some((r, img)) = image {
-        e *= r.lookup(img, uv, ColorSpace::Srgb);
-    }
+    let e = Rgb::new(f[0], f[1], f[2]) * m.emissive_strength().unwrap_or(1.0);
     if e.is_finite() { e.max(Rgb::ZERO) } else { Rgb::ZERO }
 }
 
-/// Material `m`'s emissive texture, decoded, when it has one and a factor that is not black. It is read at
-/// each triangle's centroid while the meshes are built, and does not join the texture list.
-pub(super) fn emissive_image(
+/// Material `m`'s emissive texture as the area lights read it (sRGB, in the texture list, with its sampler and
+/// the mean of its texels), when it has one and a factor that is not black.
+fn emission_image(
     im: &mut Import<'_>,
     m: &gltf::Material<'_>,
-    limit: u64,
-) -> Result<Option<(ImageRef, TexelImage)>, ImportError> {
+    images: &mut Images,
+) -> Result<Option<EmissionImage>, ImportError> {
     let Some(info) = m.emissive_texture() else { return Ok(None) };
-    if m.emissive_factor() == [0.0; 3] {
+    if emission_scale(m) == Rgb::ZERO {
         return Ok(None);
     }
     check_tex_coord(im, info.tex_coord());
-    im.warn(
-        "emissiveTexture is read at each triangle's centroid: the emission is constant over each triangle, so a \
-         texture varies across a mesh only as finely as its triangles",
-    );
     let tex = info.texture();
-    let image = tex.source();
-    let (bytes, name) = buffers::image_bytes(im, &image, limit)?;
-    let field = format!("images[{}]", image.index());
-    let img = decode(&bytes, limit).map_err(|source| ImportError::Texture { file: name, field, source })?;
-    Ok(Some((image_ref(im, &tex, 0, Some(ColorSpace::Srgb)), img)))
+    let slot = images.slot(im, tex.source().index(), Use::Plain(true))?;
+    let Some(img) = images.out.get(slot as usize) else { return Ok(None) };
+    let mut sum = [0.0f64; 3];
+    for j in 0..img.height {
+        for i in 0..img.width {
+            let c = img.texel(i, j, ColorSpace::Srgb);
+            sum = [sum[0] + f64::from(c.x), sum[1] + f64::from(c.y), sum[2] + f64::from(c.z)];
+        }
+    }
+    let n = f64::from(img.width) * f64::from(img.height);
+    let mean = Rgb::new((sum[0] / n) as f32, (sum[1] / n) as f32, (sum[2] / n) as f32);
+    let r = image_ref(im, &tex, slot, Some(ColorSpace::Srgb));
+    Ok(Some(EmissionImage { slot, wrap: r.wrap, filter: r.filter, mean }))
 }

@@ -133,8 +133,7 @@ pub(crate) fn import_unlogged(
         doc: &gltf.document,
         buffers,
         warned: BTreeSet::new(),
-        texture_limit,
-        emissive: Default::default(),
+        material_emission: Vec::new(),
         material_masks: Vec::new(),
     };
     unsupported_document_features(&mut im);

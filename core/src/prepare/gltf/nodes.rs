@@ -10,13 +10,13 @@
 //! tangents' `w` turned. Without normals a primitive is flat shaded and its tangents ignored, as the
 //! specification asks. A primitive whose material is a textured cut-out carries its mask (`materials`).
 
-use super::materials::{emission_at, emissive_image};
+use super::materials::emission_scale;
 use super::types::{Import, ImportError, Imported, ImportedCamera, ImportedMesh, malformed};
 use crate::Rgb;
 use crate::geometry::MeshShading;
 use crate::geometry::mesh::MeshData;
 use crate::scene::LightSpec;
-use glam::{Affine3A, Mat4, Vec2, Vec3};
+use glam::{Affine3A, Mat4, Vec3};
 use gltf::accessor::{DataType, Dimensions};
 use gltf::mesh::Semantic;
 
@@ -284,13 +284,16 @@ fn primitive(
     let mut shading = shading(world, &faces, &normals, &tangents, &uvs);
     let at = |i: u32| world.transform_point3(Vec3::from(positions[i as usize]));
     let triangles: Vec<[Vec3; 3]> = faces.iter().map(|f| [at(f[0]), at(f[1]), at(f[2])]).collect();
-    let emission = emission(im, &m, &faces, &shading.uvs)?;
+    let emission = emission(&m, faces.len());
     let material = m.index().map_or(im.doc.materials().len(), |i| i) as u32;
     shading.mask = im.material_masks.get(material as usize).copied().flatten();
+    let emission_image =
+        if emission.is_empty() { None } else { im.material_emission.get(material as usize).copied().flatten() };
     Ok(Some(ImportedMesh {
         mesh: MeshData { triangles, shading },
         material,
         emission,
+        emission_image,
         two_sided_emission: m.double_sided(),
     }))
 }
@@ -327,27 +330,9 @@ fn shading(
     shading
 }
 
-/// Each face's emitted radiance (the emissive texture read at its centroid's UV), or empty when the material
-/// emits nothing.
-fn emission(
-    im: &mut Import<'_>,
-    m: &gltf::Material<'_>,
-    faces: &[[u32; 3]],
-    uvs: &[[f32; 2]],
-) -> Result<Vec<Rgb>, ImportError> {
-    if m.emissive_factor() == [0.0; 3] {
-        return Ok(Vec::new());
-    }
-    let key = m.index().unwrap_or(usize::MAX);
-    if !im.emissive.contains_key(&key) {
-        let image = emissive_image(im, m, im.texture_limit)?;
-        im.emissive.insert(key, image);
-    }
-    let image = im.emissive.get(&key).and_then(Option::as_ref);
-    let centroid = |f: &[u32; 3]| {
-        let uv = |i: u32| uvs.get(i as usize).map_or(Vec2::ZERO, |t| Vec2::from(*t));
-        (uv(f[0]) + uv(f[1]) + uv(f[2])) / 3.0
-    };
-    let e: Vec<Rgb> = faces.iter().map(|f| emission_at(m, image, centroid(f))).collect();
-    Ok(if e.iter().all(|c| c.max_element() <= 0.0) { Vec::new() } else { e })
+/// Each face's emitted radiance scale ([`emission_scale`]; the material's emissive texture multiplies it point
+/// by point), or empty when the material emits nothing.
+fn emission(m: &gltf::Material<'_>, faces: usize) -> Vec<Rgb> {
+    let e = emission_scale(m);
+    if e.max_element() > 0.0 { vec![e; faces] } else { Vec::new() }
 }

@@ -4,6 +4,7 @@
 use crate::Rgb;
 use crate::geometry::mask::AlphaMask;
 use crate::geometry::mesh::{MeshData, MeshError};
+use crate::light::EmissionImage;
 use crate::material::texture::TextureError;
 use crate::material::{Material, TexelImage};
 use crate::scene::{LightSpec, SceneError};
@@ -18,9 +19,12 @@ pub struct ImportedMesh {
     pub mesh: MeshData,
     /// Index into [`Imported::materials`].
     pub material: u32,
-    /// Emitted radiance of each triangle (`emissiveFactor × KHR_materials_emissive_strength × the emissive
-    /// texture at the triangle's centroid`), or empty when the material emits nothing.
+    /// Emitted radiance of each triangle (`emissiveFactor × KHR_materials_emissive_strength`), times
+    /// `emission_image` at each point when there is one; empty when the material emits nothing.
     pub emission: Vec<Rgb>,
+    /// The material's `emissiveTexture` (its slot indexes [`Imported::images`]), read at each point of the
+    /// surface by the area lights.
+    pub emission_image: Option<EmissionImage>,
     /// Whether the emission leaves both sides (the material's `doubleSided`).
     pub two_sided_emission: bool,
 }
@@ -96,10 +100,9 @@ pub(crate) struct Import<'a> {
     pub(super) doc: &'a gltf::Document,
     pub(super) buffers: Vec<Vec<u8>>,
     pub(super) warned: BTreeSet<String>,
-    /// The most bytes an image may decode to.
-    pub(super) texture_limit: u64,
-    /// The emissive image of each material index read so far (`usize::MAX`: the default material).
-    pub(super) emissive: std::collections::BTreeMap<usize, Option<(crate::material::ImageRef, TexelImage)>>,
+    /// The emissive texture of each material, by material index (the default material last); filled by
+    /// `materials::load`.
+    pub(super) material_emission: Vec<Option<EmissionImage>>,
     /// The index into [`Imported::masks`] of each material's cut-out, by material index (the default material
     /// last); filled by `materials::load`.
     pub(super) material_masks: Vec<Option<u32>>,
