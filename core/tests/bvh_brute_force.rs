@@ -286,8 +286,8 @@ fn a_decoded_geometry_has_the_tree_it_was_encoded_with() {
     let tris = soup(8, 100_000);
     let g = geometry(&tris);
     let blob = photon_core::codec::encode(&g).unwrap();
-    // The blob is the primitives, planes and meshes, and nothing else.
-    assert_eq!(blob, photon_core::codec::encode(&(&g.prims, &g.planes, &g.meshes)).unwrap());
+    // The blob is the primitives, planes, meshes and cut-outs, and nothing else.
+    assert_eq!(blob, photon_core::codec::encode(&(&g.prims, &g.planes, &g.meshes, &g.masks)).unwrap());
     let back: Geometry = photon_core::codec::decode(&blob, blob.len()).unwrap();
     assert_eq!(back.prims, g.prims);
     assert_eq!(back.bvh.structure_hash(), g.bvh.structure_hash());

@@ -250,11 +250,18 @@ fn every_shipped_scene_blob_passes_the_check() {
     assert!(n >= 20, "{n} scenes");
 }
 
-/// A 2 × 2 cut-out of `channels` values a texel, `values` values in all, and `cutoff`.
-fn mask(channels: u8, values: usize, cutoff: f32) -> photon_core::geometry::mask::AlphaMask {
-    use photon_core::material::texture::{Filter, TexelImage, Texels, Wrap};
-    let alpha = TexelImage { width: 2, height: 2, channels, texels: Texels::U8(vec![128; values]) };
-    photon_core::geometry::mask::AlphaMask { alpha, wrap: Wrap::Repeat, filter: Filter::Nearest, factor: 1.0, cutoff }
+/// A 2 × 2 cut-out of `values` values in all and `cutoff`.
+fn mask(values: usize, cutoff: f32) -> photon_core::geometry::mask::AlphaMask {
+    let alpha = vec![32768; values];
+    photon_core::geometry::mask::AlphaMask {
+        width: 2,
+        height: 2,
+        alpha,
+        repeat: true,
+        bilinear: false,
+        factor: 1.0,
+        cutoff,
+    }
 }
 
 /// One corruption: what it changes, and the table (or field) its error must name.
@@ -363,9 +370,9 @@ fn cases(b: &Blob, fog: bool) -> Vec<Case> {
         ),
         ("a UV-only triangle's face", Box::new(move |b| mesh_of(b, ut, &|_, face| *face = 1)), "uv_indices".into()),
         ("a mesh's cut-out past the cut-outs", Box::new(move |b| b.geometry.meshes[m].mask = Some(0)), "masks".into()),
-        ("a cut-out of three channels", Box::new(|b| b.geometry.masks.push(mask(3, 12, 0.5))), "masks[0]".into()),
-        ("a cut-out's texels short", Box::new(|b| b.geometry.masks.push(mask(1, 3, 0.5))), "masks[0]".into()),
-        ("a cut-out's cutoff not finite", Box::new(|b| b.geometry.masks.push(mask(1, 4, f32::NAN))), "masks[0]".into()),
+        ("a cut-out's texels short", Box::new(|b| b.geometry.masks.push(mask(3, 0.5))), "masks[0]".into()),
+        ("a cut-out's texels too many", Box::new(|b| b.geometry.masks.push(mask(12, 0.5))), "masks[0]".into()),
+        ("a cut-out's cutoff not finite", Box::new(|b| b.geometry.masks.push(mask(4, f32::NAN))), "masks[0]".into()),
         (
             "a mesh's tangents fewer than its normals",
             Box::new(move |b| b.geometry.meshes[m].tangents = vec![[1.0, 0.0, 0.0, 1.0]; normals - 1]),

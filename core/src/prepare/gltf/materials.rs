@@ -158,7 +158,20 @@ fn alpha_mask(im: &mut Import<'_>, m: &gltf::Material<'_>, limit: u64) -> Result
         return Ok(None);
     }
     let r = image_ref(im, &tex, 0, None);
-    Ok(Some(AlphaMask { alpha, wrap: r.wrap, filter: r.filter, factor, cutoff }))
+    let values = match alpha.texels {
+        Texels::U8(v) => v.into_iter().map(|a| u16::from(a) * 257).collect(),
+        Texels::U16(v) => v,
+        Texels::F32(v) => v.into_iter().map(|a| (a.clamp(0.0, 1.0) * 65535.0).round() as u16).collect(),
+    };
+    Ok(Some(AlphaMask {
+        width: alpha.width,
+        height: alpha.height,
+        alpha: values,
+        repeat: r.wrap == Wrap::Repeat,
+        bilinear: r.filter == Filter::Bilinear,
+        factor,
+        cutoff,
+    }))
 }
 
 /// An image reference to slot `slot` with the sampler of `texture`.
