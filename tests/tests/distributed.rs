@@ -119,13 +119,13 @@ fn corrupted_pixels_are_caught_and_rendered_again() {
     let all = text(&o);
     assert_eq!(all.matches("checksum mismatch").count(), 2, "{all}");
     assert!(bits(&out) == want, "a corrupted strip reached the image");
-    // A worker that keeps corrupting is dropped after 3 bad strips, with the reason; a good one finishes.
+    // A worker that keeps corrupting is blocked after 3 bad strips, with the reason; a good one finishes.
     let hopeless = WorkerProcess::start(&["--threads", "1", "--test-corrupt-strips", "1000"]);
     let good = WorkerProcess::start(&["--threads", "1"]);
     let o = render(&out, QUICK, &["--workers", &workers_arg(&[&hopeless, &good])]);
     assert!(o.status.success(), "{}", text(&o));
     let stderr = String::from_utf8_lossy(&o.stderr);
-    assert!(stderr.contains(&format!("worker {} dropped: 3 counted failures", hopeless.addr)), "{}", text(&o));
+    assert!(stderr.contains(&format!("worker {} blocked: 3 failed units (limit 3)", hopeless.addr)), "{}", text(&o));
     assert!(bits(&out) == want, "a corrupted strip reached the image");
 }
 
@@ -142,7 +142,7 @@ fn a_non_finite_strip_is_reported_as_a_bug_not_a_faulty_worker() {
     let all = text(&o);
     assert!(all.contains("holds the sum -1: not the sum of"), "{all}");
     assert!(all.contains("bug in photon") && all.contains("method `photon-map`"), "{all}");
-    assert!(!all.contains("--resume") && !all.contains("dropped"), "{all}");
+    assert!(!all.contains("--resume") && !all.contains("blocked"), "{all}");
     assert!(!dir.join("out.exr.partial").exists());
 }
 

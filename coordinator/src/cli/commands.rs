@@ -59,7 +59,7 @@ fn render(args: RenderArgs) -> Result<()> {
     if args.rows_per_strip == Some(0) {
         bail!("--rows-per-strip must be at least 1");
     }
-    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
+    let Resolved { spec, token, tls_ca, policy } = args.farm.resolve()?;
     let t0 = Instant::now();
     let mut scene = render_scene(&args)?;
     let bound = bound(&args, &mut scene, t0)?;
@@ -103,6 +103,7 @@ fn render(args: RenderArgs) -> Result<()> {
         live: live.as_ref().map(|(board, _)| board.clone()),
         greetings,
         checkpoint,
+        policy,
         ..farm::Options::default()
     };
     let (outcome, in_process) = rt.block_on(async {
@@ -425,10 +426,10 @@ fn reference(args: ReferenceArgs) -> Result<()> {
         choice.integrator.work_words(units, u64::from(w) * u64::from(h), scene.render.photons.pass_photons, false);
     fits_in_memory(&scene, None, false)?;
     println!("reference method: {} ({budget}), because {}", choice.integrator, choice.reason);
-    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
+    let Resolved { spec, token, tls_ca, policy } = args.farm.resolve()?;
     let t = runtime()?.block_on(async {
         let fleet = fleet::Fleet::start(&spec).await?;
-        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
+        let options = farm::Options { token, tls_ca, policy, ..farm::Options::default() };
         let t = measure::render_timed(&scene, &args.scene, &fleet.addrs, options).await;
         fleet.stop().await;
         t

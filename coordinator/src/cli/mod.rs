@@ -172,6 +172,11 @@ pub struct FarmArgs {
     /// Threads on this machine, for preparing and for in-process or --local workers (default: all cores).
     #[arg(long)]
     pub(crate) threads: Option<usize>,
+    /// Block a worker after it failed this many units of the job, whatever the cause (a crash, a lost link, a
+    /// corrupt result, a stall, a missed deadline): it gets no more units of the job, and the end table shows
+    /// it `blocked` with the reason.
+    #[arg(long, value_name = "N", default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    pub(crate) block_after: u32,
 }
 
 /// What the farm flags resolve to.
@@ -182,6 +187,8 @@ pub struct Resolved {
     pub token: Option<String>,
     /// The PEM certificate authority to trust when speaking TLS to them.
     pub tls_ca: Option<Vec<u8>>,
+    /// The scheduling policy (`--block-after`).
+    pub policy: crate::farm::scheduler::Policy,
 }
 
 impl FarmArgs {
@@ -215,7 +222,8 @@ impl FarmArgs {
             Some(p) => Some(std::fs::read(&p).with_context(|| format!("reading the TLS authority {}", p.display()))?),
             None => None,
         };
-        Ok(Resolved { spec, token, tls_ca })
+        let policy = crate::farm::scheduler::Policy { block_after: self.block_after, ..Default::default() };
+        Ok(Resolved { spec, token, tls_ca, policy })
     }
 }
 

@@ -373,7 +373,8 @@ impl<'a> Farm<'a> {
         self.cancel(cancel);
     }
 
-    /// A worker that cannot be reached: its strips go to the others, and it is called back with backoff.
+    /// A worker that cannot be reached: its strips go to the others, and it is called back with backoff, unless
+    /// the units it lost blocked it.
     fn on_lost(&mut self, worker: WorkerId, reason: String, now: Duration) {
         if self.sched.worker_stats(worker).is_some_and(|s| s.state == WorkerState::Active) {
             let name = self.members[worker.0 as usize].addr.name.clone();
@@ -381,6 +382,11 @@ impl<'a> Farm<'a> {
         }
         let strips = self.sched.worker_lost(worker, now);
         self.cancel(strips.into_iter().map(|s| (worker, s)));
+        if let Some(WorkerState::Blocked(why)) = self.sched.worker_stats(worker).map(|s| s.state.clone()) {
+            self.blocked(worker, why);
+            self.members[worker.0 as usize].ready = false;
+            return;
+        }
         let m = &mut self.members[worker.0 as usize];
         m.out.get_or_insert(format!("lost: {reason}"));
         m.ready = false;
@@ -391,23 +397,36 @@ impl<'a> Farm<'a> {
         }
     }
 
-    /// Reports a failed strip to the scheduler, and drops the worker when that was one failure too many.
+    /// Reports a failed strip to the scheduler, and blocks the worker when that was one failed unit too many.
     fn on_failure(&mut self, worker: WorkerId, strip: StripId, failure: StripFailure, now: Duration) {
-        if let FailureOutcome::WorkerDropped { reason, cancel } = self.sched.failed(worker, strip, failure, now) {
-            let name = self.members[worker.0 as usize].addr.name.clone();
-            self.actions.push(Action::Warn(Warning::Dropped { worker: name, reason: reason.clone() }));
+        if let FailureOutcome::WorkerBlocked { reason, cancel } = self.sched.failed(worker, strip, failure, now) {
             self.cancel(cancel.into_iter().map(|s| (worker, s)));
-            self.members[worker.0 as usize].out = Some(format!("dropped: {reason}"));
+            self.blocked(worker, reason);
         }
     }
 
-    /// Withdraws the strips past their deadline, as failures of their workers, and notes the workers that fell
-    /// silent.
+    /// Tells the user that `worker` is blocked for `reason` (the scheduler blocked it), and keeps it out.
+    fn blocked(&mut self, worker: WorkerId, reason: String) {
+        let m = &mut self.members[worker.0 as usize];
+        self.actions.push(Action::Warn(Warning::Blocked { worker: m.addr.name.clone(), reason: reason.clone() }));
+        m.out = Some(format!("blocked: {reason}"));
+    }
+
+    /// Issues again the units of the workers that fell silent (their copies keep running) and withdraws the
+    /// strips past their deadline, as failures of their workers.
     pub(super) fn on_tick(&mut self, now: Duration) {
-        for worker in self.sched.check_stalls(now) {
+        for stall in self.sched.check_stalls(now) {
+            let worker = stall.worker;
             let silence = self.sched.silence_limit(worker);
             let name = self.members[worker.0 as usize].addr.name.clone();
-            self.actions.push(Action::Warn(Warning::Stalled { worker: name, silence }));
+            tracing::info!(worker = %name, strips = ?stall.strips, "stalled: issuing its units again");
+            if stall.newly {
+                self.actions.push(Action::Warn(Warning::Stalled { worker: name, silence }));
+            }
+            if let Some((reason, cancel)) = stall.blocked {
+                self.cancel(cancel.into_iter().map(|s| (worker, s)));
+                self.blocked(worker, reason);
+            }
         }
         for (worker, strip) in self.sched.expired(now) {
             self.cancel([(worker, strip)]);

@@ -86,7 +86,7 @@ impl Farm<'_> {
                 let state = match (&m.out, stats) {
                     (Some(why), _) => why.clone(),
                     (None, Some(s)) => match &s.state {
-                        WorkerState::Dropped(why) => format!("dropped: {why}"),
+                        WorkerState::Blocked(why) => format!("blocked: {why}"),
                         WorkerState::Lost => "lost".into(),
                         WorkerState::Active if s.stalled => "stalled".into(),
                         WorkerState::Active if s.rejoins == 1 => "ok (rejoined once)".into(),

@@ -314,7 +314,7 @@ pub fn worker_state(out: Option<&str>, stats: Option<&WorkerStats>) -> String {
         (None, Some(why)) => format!("refused: {why}"),
         (Some(s), _) => match &s.state {
             WorkerState::Lost => "lost".into(),
-            WorkerState::Dropped(why) => format!("dropped: {why}"),
+            WorkerState::Blocked(why) => format!("blocked: {why}"),
             WorkerState::Active if s.stalled => "stalled".into(),
             WorkerState::Active => "ok".into(),
         },

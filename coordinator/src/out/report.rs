@@ -238,8 +238,8 @@ pub enum Warning {
         /// Why.
         reason: String,
     },
-    /// A worker was dropped after too many counted failures.
-    Dropped {
+    /// A worker was blocked after too many failed units of the job: it gets no more.
+    Blocked {
         /// The worker.
         worker: String,
         /// Why.
@@ -273,13 +273,13 @@ impl fmt::Display for Warning {
             Self::Lost { worker, reason } => {
                 write!(f, "worker {worker} lost ({reason}); its strips go to the others while it is called back")
             }
-            Self::Dropped { worker, reason } => write!(f, "worker {worker} dropped: {reason}"),
+            Self::Blocked { worker, reason } => write!(f, "worker {worker} blocked: {reason}"),
             Self::Rejoined { worker, shipped } => {
                 write!(f, "worker {worker} rejoined ({} shipped again); it takes strips again", human_bytes(*shipped))
             }
             Self::Stalled { worker, silence } => write!(
                 f,
-                "worker {worker} stalled: no progress for over {:.1} s; its strips go to the others when overdue",
+                "worker {worker} stalled: no progress for over {:.1} s; its strips are issued again to the others",
                 silence.as_secs_f64()
             ),
         }

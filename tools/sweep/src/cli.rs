@@ -76,7 +76,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
     // Load once before starting workers, so that a broken scene fails at once.
     let exposure = Scene::load_with(&args.scene, &base)?.render.exposure;
     reference.write(&args.out.join(report::REFERENCE_PNG), exposure)?;
-    let Resolved { spec, token, tls_ca } = args.farm.resolve()?;
+    let Resolved { spec, token, tls_ca, policy } = args.farm.resolve()?;
     let rows = commands::runtime()?.block_on(async {
         // One set of workers for the whole sweep: they keep the blobs of repeated scenes and photon maps.
         let fleet = fleet::Fleet::start(&spec).await?;
@@ -88,7 +88,7 @@ pub fn run(args: SweepArgs) -> Result<()> {
             names.join(", "),
             rayon::current_num_threads()
         );
-        let options = farm::Options { token, tls_ca, ..farm::Options::default() };
+        let options = farm::Options { token, tls_ca, policy, ..farm::Options::default() };
         let rows = sweep_rows(&args, &base, &reference, &fleet.addrs, options).await;
         fleet.stop().await;
         rows

@@ -27,8 +27,16 @@
 //!   borrows the fleet's speed scaled by its cores, and before anyone has, [`Policy::first_deadline`] applies.
 //!   [`Scheduler::expired`] lists overdue assignments; the caller cancels them and reports them as failures.
 //! - **Failures carry flags** ([`StripFailure`]): a retryable failure requeues the strip; a non-retryable one
-//!   (the same input would fail anywhere) stops the render; a *counted* failure counts against the worker, which
-//!   is dropped after [`Policy::max_counted_failures`] of them. Transport hiccups are retryable and not counted.
+//!   (the same input would fail anywhere) stops the render; a *counted* failure counts against the worker.
+//!   Transport hiccups are retryable and not counted.
+//! - **Stalls are re-issued before their deadline.** A busy worker silent (no progress, no result) past its
+//!   silence limit, a few times its measured time per row, has stalled: each unit it holds is issued again to
+//!   the others first, while its own copy keeps running (the first result wins, so a slow worker loses
+//!   nothing), and it gets no new unit until it speaks or holds nothing. A cut link, a frozen process or a lost
+//!   reply then costs the silence limit, not the deadline.
+//! - **A blocklist.** A worker that fails [`Policy::block_after`] units of the job, whatever the cause (counted
+//!   failures, units it stalled on, units it held when it was lost), is blocked: it gets no more units of this
+//!   job, and is not called back. Each unit is charged once, however many ways it failed.
 //! - **A result is accepted only from the assignment that is still current**: a late result from a worker that
 //!   was declared lost, dropped or timed out is [`Completion::Unknown`] (or a duplicate, if the strip is done by
 //!   then), never counted twice. The strip has already been given to someone else by then.
@@ -65,6 +73,11 @@ struct Strip {
 struct Flight {
     attempt: u32,
     start: Duration,
+    /// Its worker fell silent while it ran ([`Scheduler::check_stalls`]) and has not spoken since: the strip is
+    /// open to other workers.
+    stalled: bool,
+    /// It was charged to its worker as a failed unit (once, whatever else befalls it).
+    charged: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -192,11 +205,16 @@ impl Scheduler {
         }
     }
 
-    /// Records that `worker` showed a sign of life at `now` (progress or a result): it is not stalled.
+    /// Records that `worker` showed a sign of life at `now` (progress or a result): it is not stalled, and its
+    /// copies in flight count as running again (no more copies of them are issued for the stall).
     pub fn heard_from(&mut self, worker: WorkerId, now: Duration) {
-        if let Some(w) = self.workers.get_mut(&worker) {
-            w.heard = Some(now);
-            w.stats.stalled = false;
+        let Some(w) = self.workers.get_mut(&worker) else { return };
+        w.heard = Some(now);
+        w.stats.stalled = false;
+        for strip in &w.in_flight {
+            if let Some(f) = self.flights.get_mut(&(*strip, worker)) {
+                f.stalled = false;
+            }
         }
     }
 
@@ -212,26 +230,50 @@ impl Scheduler {
         }
     }
 
-    /// Marks as stalled every active worker that holds strips and has said nothing (no progress, no result) for
-    /// longer than its [`Scheduler::silence_limit`], counted from when it last spoke or, if later, from when it
-    /// last became busy. Returns the workers newly stalled, in id order. A worker stays stalled until it is
-    /// heard from again ([`Scheduler::heard_from`]), even after its strips went to others.
-    pub fn check_stalls(&mut self, now: Duration) -> Vec<WorkerId> {
+    /// Finds the active workers that hold strips and have said nothing (no progress, no result) for longer than
+    /// their [`Scheduler::silence_limit`], counted from when they last spoke or, if later, from when they last
+    /// became busy. Each unit such a worker holds is marked stalled, charged to it as a failed unit, and issued
+    /// again to the next free worker ([`Scheduler::assign`]) while its copy keeps running; a worker charged
+    /// [`Policy::block_after`] units is blocked. Returns them in id order. A worker stays `stalled` until it is
+    /// heard from again ([`Scheduler::heard_from`]); a stalled worker that holds nothing more takes units again,
+    /// and each is re-issued in turn if it stays silent.
+    pub fn check_stalls(&mut self, now: Duration) -> Vec<Stall> {
         let limits: Vec<(WorkerId, Duration)> = self.workers.keys().map(|&id| (id, self.silence_limit(id))).collect();
-        let mut newly = Vec::new();
+        let mut stalls = Vec::new();
         for (id, limit) in limits {
-            let Some(w) = self.workers.get_mut(&id) else { continue };
-            if w.stats.stalled || w.stats.state != WorkerState::Active {
+            let Some(w) = self.workers.get(&id) else { continue };
+            if w.stats.state != WorkerState::Active {
                 continue;
             }
             let Some(busy) = w.busy_since else { continue };
             let since = w.heard.map_or(busy, |h| h.max(busy));
-            if now.saturating_sub(since) > limit {
-                w.stats.stalled = true;
-                newly.push(id);
+            if now.saturating_sub(since) <= limit {
+                continue;
             }
+            let fresh: Vec<StripId> = w
+                .in_flight
+                .iter()
+                .copied()
+                .filter(|&s| self.flights.get(&(s, id)).is_some_and(|f| !f.stalled))
+                .collect();
+            if fresh.is_empty() {
+                continue;
+            }
+            let newly = !w.stats.stalled;
+            let why = format!("stalled: no progress for {:.1} s", now.saturating_sub(since).as_secs_f64());
+            let mut blocked = None;
+            for &strip in &fresh {
+                if let Some(f) = self.flights.get_mut(&(strip, id)) {
+                    f.stalled = true;
+                }
+                blocked = blocked.or(self.charge(id, strip, &why, now));
+            }
+            if let Some(w) = self.workers.get_mut(&id) {
+                w.stats.stalled = true;
+            }
+            stalls.push(Stall { worker: id, newly, strips: fresh, blocked });
         }
-        newly
+        stalls
     }
 
     /// Gives `worker` its next strip at time `now`, if it is active, has a free slot and there is work: the first
@@ -244,15 +286,22 @@ impl Scheduler {
         if w.stats.state != WorkerState::Active || w.in_flight.len() >= self.policy.max_in_flight {
             return None;
         }
-        let (strip, speculative) = match self.retry.pop_first().or_else(|| self.fresh.pop_front()) {
+        // A worker silent on the units it holds gets no more until it speaks.
+        if w.in_flight.iter().any(|&s| self.flights.get(&(s, worker)).is_some_and(|f| f.stalled)) {
+            return None;
+        }
+        let (strip, speculative) = match self.stalled_candidate(worker) {
             Some(strip) => (strip, false),
-            None => (self.speculation_candidate(worker)?, true),
+            None => match self.retry.pop_first().or_else(|| self.fresh.pop_front()) {
+                Some(strip) => (strip, false),
+                None => (self.speculation_candidate(worker)?, true),
+            },
         };
         let s = &mut self.strips[strip.0 as usize];
         s.state = StripState::Running;
         s.issued += 1;
         let assignment = Assignment { strip, rows: s.rows.clone(), attempt: s.issued, speculative };
-        self.flights.insert((strip, worker), Flight { attempt: s.issued, start: now });
+        self.flights.insert((strip, worker), Flight { attempt: s.issued, start: now, stalled: false, charged: false });
         if let Some(w) = self.workers.get_mut(&worker) {
             if w.in_flight.is_empty() {
                 w.busy_since = Some(now);
@@ -263,6 +312,20 @@ impl Scheduler {
             }
         }
         Some(assignment)
+    }
+
+    /// The lowest running strip whose every copy in flight is stalled, if `worker` does not hold it: a stalled
+    /// unit is issued again before anything else, since the image waits for it.
+    fn stalled_candidate(&self, worker: WorkerId) -> Option<StripId> {
+        let mut all_stalled: BTreeMap<StripId, bool> = BTreeMap::new();
+        for (&(strip, w), flight) in &self.flights {
+            let entry = all_stalled.entry(strip).or_insert(true);
+            *entry &= flight.stalled && w != worker;
+        }
+        all_stalled
+            .into_iter()
+            .find(|&(strip, stalled)| stalled && self.strips[strip.0 as usize].state == StripState::Running)
+            .map(|(strip, _)| strip)
     }
 
     /// The running strip whose earliest copy started first, among those `worker` does not hold and that have
@@ -336,19 +399,16 @@ impl Scheduler {
         if !self.flights.contains_key(&(strip, worker)) {
             return FailureOutcome::Ignored;
         }
-        self.land(strip, worker, now);
         if self.strips[strip.0 as usize].state == StripState::Done {
+            self.land(strip, worker, now);
             return FailureOutcome::Ignored;
         }
         let Some(w) = self.workers.get_mut(&worker) else {
             return FailureOutcome::Ignored;
         };
         w.stats.failures += 1;
-        if failure.counted {
-            w.stats.counted_failures += 1;
-        }
-        let counted_failures = w.stats.counted_failures;
         if !failure.retryable {
+            self.land(strip, worker, now);
             if self.copies(strip).next().is_none() {
                 self.strips[strip.0 as usize].state = StripState::Failed;
             }
@@ -356,29 +416,61 @@ impl Scheduler {
             self.fatal.get_or_insert((strip, failure));
             return FailureOutcome::Fatal;
         }
-        let limit = self.policy.max_counted_failures;
-        if failure.counted && counted_failures >= limit {
-            let reason =
-                format!("{counted_failures} counted failures (limit {limit}), the last on {strip}: {}", failure.reason);
-            tracing::warn!("dropping {worker}: {reason}");
-            if let Some(w) = self.workers.get_mut(&worker) {
-                w.stats.state = WorkerState::Dropped(reason.clone());
-            }
-            let cancel = self.withdraw_all(worker, now);
-            self.requeue_front(&cancel);
-            self.requeue_front(&[strip]);
-            return FailureOutcome::WorkerDropped { reason, cancel };
-        }
+        let blocked = if failure.counted { self.charge(worker, strip, &failure.reason, now) } else { None };
+        self.land(strip, worker, now);
         self.requeue_front(&[strip]);
-        FailureOutcome::Retrying
+        match blocked {
+            Some((reason, withdrawn)) => {
+                let cancel = withdrawn.into_iter().filter(|&s| s != strip).collect();
+                FailureOutcome::WorkerBlocked { reason, cancel }
+            }
+            None => FailureOutcome::Retrying,
+        }
     }
 
-    /// Reports that `worker`'s connection is gone at time `now`: every strip it held is requeued at the front.
-    /// Returns those strips. Its late results will not be accepted.
+    /// Charges `worker` with the failed unit `strip` (its copy in flight), once per copy, for `why`; blocks it
+    /// when that makes [`Policy::block_after`] failed units. Returns the reason and the strips withdrawn from
+    /// it when it was blocked, `strip` included (requeued at the front, as every withdrawn strip is).
+    fn charge(&mut self, worker: WorkerId, strip: StripId, why: &str, now: Duration) -> Option<(String, Vec<StripId>)> {
+        let flight = self.flights.get_mut(&(strip, worker))?;
+        if std::mem::replace(&mut flight.charged, true) {
+            return None;
+        }
+        let w = self.workers.get_mut(&worker)?;
+        w.stats.counted_failures += 1;
+        let (failed, limit) = (w.stats.counted_failures, self.policy.block_after);
+        if failed < limit || w.stats.state != WorkerState::Active {
+            return None;
+        }
+        let reason = format!("{failed} failed units (limit {limit}), the last on {strip}: {why}");
+        tracing::warn!("blocking {worker}: {reason}");
+        w.stats.state = WorkerState::Blocked(reason.clone());
+        let withdrawn = self.withdraw_all(worker, now);
+        self.requeue_front(&withdrawn);
+        Some((reason, withdrawn))
+    }
+
+    /// Reports that `worker`'s connection is gone at time `now`: every strip it held is requeued at the front,
+    /// and charged to it as a failed unit (it may be blocked then, instead of lost). Returns those strips. Its
+    /// late results will not be accepted.
     pub fn worker_lost(&mut self, worker: WorkerId, now: Duration) -> Vec<StripId> {
-        match self.workers.get_mut(&worker) {
-            Some(w) if w.stats.state == WorkerState::Active => w.stats.state = WorkerState::Lost,
-            _ => return Vec::new(),
+        if !self.workers.get(&worker).is_some_and(|w| w.stats.state == WorkerState::Active) {
+            return Vec::new();
+        }
+        let strips = self.in_flight(worker);
+        for &strip in &strips {
+            if self.strips[strip.0 as usize].state == StripState::Done {
+                continue;
+            }
+            if let Some(w) = self.workers.get_mut(&worker) {
+                w.stats.failures += 1;
+            }
+            if self.charge(worker, strip, "lost while rendering it", now).is_some() {
+                return strips;
+            }
+        }
+        if let Some(w) = self.workers.get_mut(&worker) {
+            w.stats.state = WorkerState::Lost;
         }
         let strips = self.withdraw_all(worker, now);
         self.requeue_front(&strips);

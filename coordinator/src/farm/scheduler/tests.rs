@@ -285,7 +285,7 @@ fn a_failed_copy_leaves_the_other_copy_running_without_requeueing() {
 }
 
 #[test]
-fn repeated_counted_failures_drop_the_worker_and_requeue_its_strips() {
+fn repeated_counted_failures_block_the_worker_and_requeue_its_strips() {
     let mut s = Scheduler::new(40, 4);
     s.add_worker(W0, 4);
     s.add_worker(W1, 4);
@@ -301,13 +301,13 @@ fn repeated_counted_failures_drop_the_worker_and_requeue_its_strips() {
     let other = s.assign(W0, secs(t)).unwrap();
     assert_eq!((a.strip, a.attempt, other.strip), (StripId(0), 3, StripId(1)));
     match s.failed(W0, a.strip, StripFailure::counted("crash 3"), secs(t + 1.0)) {
-        FailureOutcome::WorkerDropped { reason, cancel } => {
-            assert!(reason.contains("3 counted failures") && reason.contains("crash 3"), "{reason}");
+        FailureOutcome::WorkerBlocked { reason, cancel } => {
+            assert!(reason.contains("3 failed units (limit 3)") && reason.contains("crash 3"), "{reason}");
             assert_eq!(cancel, vec![StripId(1)]);
         }
         other => panic!("{other:?}"),
     }
-    assert!(matches!(s.worker_stats(W0).unwrap().state, WorkerState::Dropped(_)));
+    assert!(matches!(s.worker_stats(W0).unwrap().state, WorkerState::Blocked(_)));
     assert_eq!(s.worker_stats(W0).unwrap().counted_failures, 3);
     assert_eq!(s.pending_strips()[..3], [StripId(0), StripId(1), StripId(2)]);
     assert_eq!(s.assign(W0, secs(t + 1.0)), None);
@@ -478,7 +478,9 @@ fn check_books(s: &Scheduler, outstanding: &[(WorkerId, Assignment)], accepted: 
         let strip = StripId(strip);
         let queued = pending.iter().filter(|&&p| p == strip).count();
         let copies = outstanding.iter().filter(|(_, a)| a.strip == strip).count();
-        assert!(copies <= s.policy().max_copies);
+        // A stalled copy is issued again beside itself, whatever the copy limit.
+        let stalled = s.copies(strip).filter(|(_, f)| f.stalled).count();
+        assert!(copies <= s.policy().max_copies + stalled);
         if accepted[strip.0 as usize] == 1 {
             assert_eq!((queued, copies), (0, 0), "{strip} is done");
         } else {
@@ -487,10 +489,26 @@ fn check_books(s: &Scheduler, outstanding: &[(WorkerId, Assignment)], accepted: 
     }
 }
 
+/// A blocked worker `w`'s strips in flight: they must be the ones the scheduler cancels, and become stale.
+fn withdraw(
+    w: WorkerId,
+    mut cancel: Vec<StripId>,
+    outstanding: &mut Vec<(WorkerId, Assignment)>,
+    stale: &mut Vec<(WorkerId, Assignment)>,
+    seed: u64,
+) {
+    let mut theirs: Vec<StripId> = outstanding.iter().filter(|(o, _)| *o == w).map(|(_, a)| a.strip).collect();
+    theirs.sort_unstable();
+    cancel.sort_unstable();
+    assert_eq!(cancel, theirs, "seed {seed}");
+    stale.extend(outstanding.iter().filter(|(o, _)| *o == w).cloned());
+    outstanding.retain(|(o, _)| *o != w);
+}
+
 #[test]
 fn random_event_orders_accept_every_strip_exactly_once() {
     // How often the interesting paths were taken over all seeds, to show the test reaches them.
-    let (mut drops, mut losses, mut expiries, mut late, mut speculative) = (0, 0, 0, 0, 0);
+    let (mut drops, mut losses, mut expiries, mut late, mut speculative, mut stalls) = (0, 0, 0, 0, 0, 0);
     for seed in 0..200u64 {
         let mut rng = SplitMix64(seed);
         let height = 1 + rng.below(60) as u32;
@@ -498,9 +516,10 @@ fn random_event_orders_accept_every_strip_exactly_once() {
         let policy = Policy {
             max_in_flight: 1 + rng.below(3),
             max_copies: 1 + rng.below(3),
-            max_counted_failures: 1 + rng.below(4) as u32,
+            block_after: 1 + rng.below(4) as u32,
             deadline_floor: secs(1.0),
             first_deadline: secs(20.0),
+            silence_floor: secs(0.5),
             ..Policy::default()
         };
         let mut s = Scheduler::with_policy(height, rows, policy);
@@ -557,15 +576,9 @@ fn random_event_orders_accept_every_strip_exactly_once() {
                     };
                     match s.failed(w, a.strip, failure, now) {
                         FailureOutcome::Retrying => {}
-                        FailureOutcome::WorkerDropped { mut cancel, .. } => {
+                        FailureOutcome::WorkerBlocked { cancel, .. } => {
                             drops += 1;
-                            let mut theirs: Vec<StripId> =
-                                outstanding.iter().filter(|(o, _)| *o == w).map(|(_, a)| a.strip).collect();
-                            theirs.sort_unstable();
-                            cancel.sort_unstable();
-                            assert_eq!(cancel, theirs, "seed {seed}");
-                            stale.extend(outstanding.iter().filter(|(o, _)| *o == w).cloned());
-                            outstanding.retain(|(o, _)| *o != w);
+                            withdraw(w, cancel, &mut outstanding, &mut stale, seed);
                         }
                         other => panic!("seed {seed}: {other:?}"),
                     }
@@ -594,13 +607,25 @@ fn random_event_orders_accept_every_strip_exactly_once() {
                         expiries += 1;
                         match s.failed(w, strip, StripFailure::timed_out(now, now), now) {
                             FailureOutcome::Retrying => {}
-                            FailureOutcome::WorkerDropped { .. } => {
+                            FailureOutcome::WorkerBlocked { .. } => {
                                 stale.extend(outstanding.iter().filter(|(o, _)| *o == w).cloned());
                                 outstanding.retain(|(o, _)| *o != w);
                             }
                             other => panic!("seed {seed}: {other:?}"),
                         }
                         stale.push((w, a));
+                    }
+                }
+                9 => {
+                    for stall in s.check_stalls(now) {
+                        stalls += 1;
+                        if rng.below(3) == 0 {
+                            s.heard_from(stall.worker, now);
+                        }
+                        if let Some((_, cancel)) = stall.blocked {
+                            drops += 1;
+                            withdraw(stall.worker, cancel, &mut outstanding, &mut stale, seed);
+                        }
                     }
                 }
                 _ => {}
@@ -637,8 +662,11 @@ fn random_event_orders_accept_every_strip_exactly_once() {
             assert_eq!(s.complete(*w, a.strip, a.attempt, now), Completion::Duplicate, "seed {seed}");
         }
     }
-    let counts = [drops, losses, expiries, late, speculative];
-    assert!(counts.iter().all(|&n| n >= 20), "drops, losses, expiries, late results, speculative copies: {counts:?}");
+    let counts = [drops, losses, expiries, late, speculative, stalls];
+    assert!(
+        counts.iter().all(|&n| n >= 20),
+        "blocks, losses, expiries, late results, speculative copies, stalls: {counts:?}"
+    );
 }
 
 #[test]
@@ -667,14 +695,14 @@ fn a_lost_worker_rejoins_with_its_numbers_and_takes_strips_again() {
     assert_eq!(s.complete(W0, held.strip, held.attempt, secs(3.5)), Completion::Unknown);
     assert!(is_accepted(&s.complete(W0, again.strip, again.attempt, secs(4.0))));
     assert_eq!(s.worker_stats(W0).unwrap().strips, 2);
-    // A dropped worker stays out.
-    let policy = Policy { max_counted_failures: 1, ..Policy::default() };
+    // A blocked worker stays out.
+    let policy = Policy { block_after: 1, ..Policy::default() };
     let mut s = Scheduler::with_policy(8, 4, policy);
     s.add_worker(W0, 1);
     let a = s.assign(W0, secs(0.0)).unwrap();
     assert!(matches!(
         s.failed(W0, a.strip, StripFailure::counted("bad"), secs(1.0)),
-        FailureOutcome::WorkerDropped { .. }
+        FailureOutcome::WorkerBlocked { .. }
     ));
     assert!(!s.rejoin(W0, 1));
 }
@@ -702,7 +730,9 @@ fn a_busy_worker_silent_past_its_limit_is_stalled_until_it_speaks() {
     assert!(s.check_stalls(secs(54.0)).is_empty());
     s.heard_from(W0, secs(53.0));
     assert!(s.check_stalls(secs(57.0)).is_empty());
-    assert_eq!(s.check_stalls(secs(57.5)), vec![W0]);
+    let stalls = s.check_stalls(secs(57.5));
+    assert_eq!(stalls.len(), 1);
+    assert_eq!((stalls[0].worker, stalls[0].newly, &stalls[0].strips[..]), (W0, true, &[StripId(1)][..]));
     assert!(s.worker_stats(W0).unwrap().stalled);
     assert!(s.check_stalls(secs(60.0)).is_empty(), "reported once");
     // It stays stalled until it is heard from, then it is not.
@@ -765,4 +795,98 @@ fn copies_in_flight_count_the_originals_and_their_tail_copies() {
     assert_eq!(s.copies_in_flight(), vec![0, 1, 0, 1]);
     assert_eq!(s.done_strips(), vec![StripId(0), StripId(2)]);
     assert!(is_accepted(&s.complete(W0, a1.strip, a1.attempt, secs(3.0))));
+}
+
+/// A worker silent past its limit has its units issued again, to the next free worker before anything else,
+/// while its own copy runs on: whichever copy finishes first is the one accepted, once. The stalled worker gets
+/// nothing new until it speaks; once it has, its copy counts as running again and is not re-issued twice.
+#[test]
+fn a_stalled_unit_is_issued_again_before_its_deadline_and_the_first_result_wins() {
+    let policy = Policy { silence_floor: secs(2.0), max_copies: 1, block_after: 10, ..Policy::default() };
+    let mut s = Scheduler::with_policy(40, 4, policy);
+    s.add_worker(W0, 1);
+    s.add_worker(W1, 1);
+    // W0 measures 1 s a row (a 4-row strip in 4 s): silent for 4 s, it has stalled; its deadline is 16 s.
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(4.0))));
+    let b = s.assign(W0, secs(4.0)).unwrap();
+    let c = s.assign(W0, secs(4.0)).unwrap();
+    assert_eq!(s.deadline(W0, b.strip), Some(secs(20.0)));
+    assert!(s.check_stalls(secs(8.0)).is_empty());
+    let stalls = s.check_stalls(secs(8.5));
+    assert_eq!(stalls.len(), 1);
+    assert_eq!((stalls[0].worker, stalls[0].newly, stalls[0].blocked.clone()), (W0, true, None));
+    assert_eq!(stalls[0].strips, vec![b.strip, c.strip]);
+    assert_eq!(s.worker_stats(W0).unwrap().counted_failures, 2, "each unit is charged");
+    // W1 takes the stalled units first (copies beside the stalled ones, whatever max_copies), then fresh ones.
+    assert_eq!(s.assign(W0, secs(8.5)), None, "a stalled worker gets nothing new");
+    let b1 = s.assign(W1, secs(8.5)).unwrap();
+    let c1 = s.assign(W1, secs(8.5)).unwrap();
+    assert_eq!((b1.strip, c1.strip, b1.speculative), (b.strip, c.strip, false));
+    assert!(b1.attempt > b.attempt);
+    assert_eq!(s.copies_in_flight()[b.strip.0 as usize], 2);
+    // W1 finishes strip b first: W0's copy is cancelled. W0 comes back and finishes strip c before W1: W1's
+    // copy is cancelled, and W1's late result is not accepted.
+    assert_eq!(s.complete(W1, b1.strip, b1.attempt, secs(9.0)), Completion::Accepted { cancel: vec![(W0, b.strip)] });
+    s.heard_from(W0, secs(9.5));
+    assert!(!s.worker_stats(W0).unwrap().stalled);
+    assert!(s.check_stalls(secs(9.9)).is_empty(), "W0 spoke at 9.5 s, W1 is busy since 8.5 s (limit 2 s)");
+    assert_eq!(s.complete(W0, c.strip, c.attempt, secs(10.0)), Completion::Accepted { cancel: vec![(W1, c.strip)] });
+    assert_eq!(s.complete(W1, c1.strip, c1.attempt, secs(10.5)), Completion::Duplicate);
+    assert_eq!(s.done_strips(), vec![a.strip, b.strip, c.strip]);
+    // A unit is charged once: stalled, then past its deadline, it still counts one failed unit.
+    let d = s.assign(W0, secs(10.0)).unwrap();
+    assert_eq!(s.check_stalls(secs(20.0)).len(), 1);
+    assert_eq!(s.worker_stats(W0).unwrap().counted_failures, 3, "two before, one now");
+    let deadline = s.deadline(W0, d.strip).unwrap();
+    assert_eq!(s.expired(deadline + secs(1.0)), vec![(W0, d.strip)]);
+    let f = StripFailure::timed_out(secs(30.0), secs(16.0));
+    assert_eq!(s.failed(W0, d.strip, f, deadline + secs(1.0)), FailureOutcome::Retrying);
+    assert_eq!(s.worker_stats(W0).unwrap().counted_failures, 3, "charged once");
+}
+
+/// Three failed units of one job block a worker whatever their cause: a corrupt result, a stall and a lost
+/// connection here. A blocked worker takes nothing, is not taken back as a lost one would be, and its strips
+/// go to the others; the render finishes without it.
+#[test]
+fn a_worker_that_fails_three_units_whatever_the_cause_is_blocked() {
+    let policy = Policy { silence_floor: secs(2.0), block_after: 3, ..Policy::default() };
+    let mut s = Scheduler::with_policy(40, 4, policy);
+    s.add_worker(W0, 1);
+    s.add_worker(W1, 1);
+    let a = s.assign(W0, secs(0.0)).unwrap();
+    assert!(is_accepted(&s.complete(W0, a.strip, a.attempt, secs(1.0))));
+    // 1: a corrupt result.
+    let b = s.assign(W0, secs(1.0)).unwrap();
+    assert_eq!(s.failed(W0, b.strip, StripFailure::counted("checksum mismatch"), secs(2.0)), FailureOutcome::Retrying);
+    // 2: a stall on one unit (it takes the requeued strip again, and holds only that).
+    let c = s.assign(W0, secs(2.0)).unwrap();
+    assert_eq!(c.strip, b.strip);
+    let stalls = s.check_stalls(secs(10.0));
+    assert_eq!((stalls.len(), s.worker_stats(W0).unwrap().counted_failures), (1, 2));
+    // W1 takes the stalled unit; W0's copy ends when W1's result lands.
+    let c1 = s.assign(W1, secs(10.0)).unwrap();
+    assert_eq!(c1.strip, c.strip);
+    assert!(is_accepted(&s.complete(W1, c1.strip, c1.attempt, secs(11.0))));
+    // 3: lost while holding a unit (it took new units once it held nothing).
+    let d = s.assign(W0, secs(11.0)).unwrap();
+    let e = s.assign(W0, secs(11.0)).unwrap();
+    assert_eq!(s.worker_lost(W0, secs(12.0)), vec![d.strip, e.strip]);
+    let stats = s.worker_stats(W0).unwrap();
+    assert_eq!(stats.counted_failures, 3);
+    match &stats.state {
+        WorkerState::Blocked(why) => {
+            assert!(why.starts_with("3 failed units (limit 3)") && why.contains("lost"), "{why}")
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(!s.rejoin(W0, 1), "a blocked worker is not taken back");
+    assert_eq!(s.assign(W0, secs(12.0)), None);
+    assert_eq!(s.pending_strips()[..2], [d.strip, e.strip], "requeued at the front");
+    let mut now = 12.0;
+    while let Some(a) = s.assign(W1, secs(now)) {
+        assert!(is_accepted(&s.complete(W1, a.strip, a.attempt, secs(now + 0.5))));
+        now += 1.0;
+    }
+    assert!(s.is_done());
 }

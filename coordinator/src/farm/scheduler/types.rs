@@ -33,8 +33,12 @@ pub struct Policy {
     pub max_in_flight: usize,
     /// Copies of one strip that may be in flight at once, the original included (1 disables speculation).
     pub max_copies: usize,
-    /// Counted failures after which a worker is dropped.
-    pub max_counted_failures: u32,
+    /// Failed units after which a worker is blocked: it gets no more units of this job. Every failure counts
+    /// but those that are nobody's fault (a cancelled copy, a busy worker) or the job's (the same input fails
+    /// everywhere): a corrupt or impossible result, a missed deadline, a unit it stalled on, and each unit it
+    /// held when its connection was lost (a crash, a cut link). Flamenco blocks a worker after 3 failures on a
+    /// job for the same reason: one bad machine must not fail unit after unit.
+    pub block_after: u32,
     /// A strip is overdue after this many times its expected latency.
     pub deadline_factor: f64,
     /// The shortest deadline, whatever the measured speed (absorbs jitter on tiny strips).
@@ -52,7 +56,7 @@ impl Default for Policy {
         Self {
             max_in_flight: 2,
             max_copies: 2,
-            max_counted_failures: 3,
+            block_after: 3,
             deadline_factor: 4.0,
             deadline_floor: Duration::from_secs(10),
             first_deadline: Duration::from_secs(600),
@@ -118,7 +122,7 @@ pub struct StripFailure {
 }
 
 impl StripFailure {
-    /// A retryable failure that counts against the worker (it crashed, sent a bad strip).
+    /// A retryable failure that counts against the worker (it sent a bad strip, missed a deadline).
     pub fn counted(reason: impl Into<String>) -> Self {
         Self { retryable: true, counted: true, reason: reason.into() }
     }
@@ -160,8 +164,8 @@ pub enum FailureOutcome {
     Ignored,
     /// The strip was requeued at the front (or another copy of it is still running).
     Retrying,
-    /// The worker reached the counted-failure limit and was dropped; all its strips were requeued.
-    WorkerDropped {
+    /// The worker reached [`Policy::block_after`] failed units and was blocked; all its strips were requeued.
+    WorkerBlocked {
         /// Why, for the log.
         reason: String,
         /// Its other strips still in flight: cancel them on the worker.
@@ -178,8 +182,8 @@ pub enum WorkerState {
     Active,
     /// Its connection was lost ([`crate::farm::scheduler::Scheduler::worker_lost`]); it may rejoin ([`crate::farm::scheduler::Scheduler::rejoin`]).
     Lost,
-    /// Dropped after too many counted failures, with the reason.
-    Dropped(String),
+    /// Blocked after [`Policy::block_after`] failed units of this job, with the reason: it gets no more.
+    Blocked(String),
 }
 
 /// Per-worker numbers for the end-of-render table.
@@ -195,7 +199,8 @@ pub struct WorkerStats {
     pub busy: Duration,
     /// Failures reported, counted or not.
     pub failures: u32,
-    /// Failures that counted against it.
+    /// Failed units that count towards its block ([`Policy::block_after`]): counted failures, units it
+    /// stalled on, units it held when it was lost.
     pub counted_failures: u32,
     /// Results dropped as duplicates.
     pub duplicates: u32,
@@ -203,9 +208,22 @@ pub struct WorkerStats {
     pub speculative: u32,
     /// Whether it is still taking strips.
     pub state: WorkerState,
-    /// It holds strips and has said nothing for longer than its silence limit (frozen, or its link is): shown
-    /// as `stalled` until it is heard from again.
+    /// It held strips and said nothing for longer than its silence limit (frozen, or its link is): those strips
+    /// were issued again to others. Shown as `stalled` until it is heard from again.
     pub stalled: bool,
     /// Times it came back after it was lost.
     pub rejoins: u32,
+}
+
+/// A worker found stalled by [`crate::farm::scheduler::Scheduler::check_stalls`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Stall {
+    /// The worker.
+    pub worker: WorkerId,
+    /// It was not stalled before (the first stall since it was last heard from): tell the user.
+    pub newly: bool,
+    /// The units it stalled on, now open to the other workers (its copies keep running: the first result wins).
+    pub strips: Vec<StripId>,
+    /// The stall made it reach [`Policy::block_after`]: why, and the strips it held (cancel them on it).
+    pub blocked: Option<(String, Vec<StripId>)>,
 }
