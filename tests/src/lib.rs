@@ -19,6 +19,8 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod netns;
+
 use std::io::BufRead;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
@@ -189,6 +191,14 @@ impl Drop for WorkerProcess {
 /// Reads `lines` until `n` of them contained `needle`; panics after `timeout` or when the lines end, naming
 /// `source`.
 fn wait_for_lines(lines: &Receiver<String>, needle: &str, n: usize, timeout: Duration, source: &str) {
+    if let Err(e) = seek_lines(lines, needle, n, timeout) {
+        panic!("{e} in {source}");
+    }
+}
+
+/// Reads `lines` until `n` of them contained `needle`; after `timeout`, or when the lines end, says how many
+/// did.
+fn seek_lines(lines: &Receiver<String>, needle: &str, n: usize, timeout: Duration) -> Result<(), String> {
     let end = Instant::now() + timeout;
     let mut seen = 0;
     while seen < n {
@@ -196,9 +206,10 @@ fn wait_for_lines(lines: &Receiver<String>, needle: &str, n: usize, timeout: Dur
         match lines.recv_timeout(left) {
             Ok(line) if line.contains(needle) => seen += 1,
             Ok(_) => {}
-            Err(e) => panic!("saw `{needle}` {seen} of {n} times in {source}: {e}"),
+            Err(e) => return Err(format!("saw `{needle}` {seen} of {n} times: {e}")),
         }
     }
+    Ok(())
 }
 
 /// Waits for a child up to `timeout`; kills it and returns `None` if it is still running then.
@@ -282,6 +293,12 @@ impl Running {
     /// ends first).
     pub fn wait_for_line(&self, needle: &str, n: usize, timeout: Duration) {
         wait_for_lines(&self.lines, needle, n, timeout, &format!("{}'s standard error", self.description));
+    }
+
+    /// Like [`Running::wait_for_line`], but answers whether the lines came instead of panicking (the caller can
+    /// then [`Running::finish`] and show the whole output).
+    pub fn saw_line(&self, needle: &str, n: usize, timeout: Duration) -> bool {
+        seek_lines(&self.lines, needle, n, timeout).is_ok()
     }
 
     /// Waits for it to end within `timeout` (panics if it runs longer) and returns its outputs.

@@ -86,6 +86,7 @@ impl StripContext {
         job.report_load(&mut summary);
         #[cfg(feature = "fault-injection")]
         let bytes = self.faults.after_checksum(order.strip, bytes);
+        tracing::info!(strip = order.strip, attempt = order.attempt, bytes = bytes.len(), "strip rendered, sending it");
         Ok(strip_events(&bytes, job.prep.camera.width, order.rows.start, summary))
     }
 }
