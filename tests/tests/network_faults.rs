@@ -13,7 +13,7 @@
 use photon_core::image_io::Image;
 use photon_tests::netns::Lab;
 use photon_tests::{Running, WorkerProcess, WorkerRow, coordinator, run_with_timeout, scenes_dir, temp_dir, worker};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -144,18 +144,26 @@ fn await_reissue(render: Running, fault: Instant, what: &str) -> (Running, Durat
     (render, took)
 }
 
+/// On a farm of 2 workers rendering the path job, cuts the first worker's link once it has started its third
+/// strip (its first result measured its speed), and waits until its units are issued again. Returns the farm,
+/// the render, its output and the time from the cut to the re-issue; `None` where namespaces cannot be used.
+fn cut_during_a_unit(test: &str, what: &str) -> Option<(Farm, Running, PathBuf, Duration)> {
+    let farm = Farm::start(2, &["--threads", "1", "--test-delay-ms", "150"])?;
+    let out = temp_dir("netfaults", test).join("out.exr");
+    let render = farm.render(&out, PATH_JOB, &[]);
+    farm.workers[0].wait_for_log("rendering strip", 3, LIMIT);
+    let fault = Instant::now();
+    farm.lab.cut(1);
+    let (render, took) = await_reissue(render, fault, what);
+    Some((farm, render, out, took))
+}
+
 /// A worker's link is cut while it renders a unit, after its speed is known, then restored: the coordinator
 /// notices the silence within the worker's silence limit (well before the unit's deadline), issues its units to
 /// the other worker, and the worker takes part again once its link is back.
 #[test]
 fn a_link_cut_during_a_unit_then_restored_loses_nothing() {
-    let Some(farm) = Farm::start(2, &["--threads", "1", "--test-delay-ms", "150"]) else { return };
-    let out = temp_dir("netfaults", "cut-unit").join("out.exr");
-    let render = farm.render(&out, PATH_JOB, &[]);
-    farm.workers[0].wait_for_log("rendering strip", 3, LIMIT);
-    let fault = Instant::now();
-    farm.lab.cut(1);
-    let (render, took) = await_reissue(render, fault, "link cut during a unit");
+    let Some((farm, render, out, took)) = cut_during_a_unit("cut-unit", "link cut during a unit") else { return };
     std::thread::sleep(Duration::from_millis(500));
     farm.lab.restore(1);
     let o = render.finish(LIMIT);
@@ -166,13 +174,7 @@ fn a_link_cut_during_a_unit_then_restored_loses_nothing() {
 /// A worker cut off for good: its units go to the other, and the render finishes without it.
 #[test]
 fn a_worker_cut_off_for_good_loses_nothing() {
-    let Some(farm) = Farm::start(2, &["--threads", "1", "--test-delay-ms", "150"]) else { return };
-    let out = temp_dir("netfaults", "cut-for-good").join("out.exr");
-    let render = farm.render(&out, PATH_JOB, &[]);
-    farm.workers[0].wait_for_log("rendering strip", 3, LIMIT);
-    let fault = Instant::now();
-    farm.lab.cut(1);
-    let (render, _) = await_reissue(render, fault, "worker cut off for good");
+    let Some((farm, render, out, _)) = cut_during_a_unit("cut-for-good", "worker cut off for good") else { return };
     let o = render.finish(LIMIT);
     let rows = check(&o, &out, PATH_JOB, 32, &farm);
     let state = &rows[0].state;

@@ -60,7 +60,7 @@ pub(super) struct Member {
     /// Blob bytes it received, from the coordinator and from other workers.
     pub(super) received: Delivered,
     pub(super) ship_s: f64,
-    /// Why it is out, if it is (refused, lost, dropped).
+    /// Why it is out, if it is (refused, lost, blocked).
     pub(super) out: Option<String>,
     /// Rows (passes, for pass blocks) finished in strips still in flight (for the progress bar's rate).
     pub(super) rows_live: u64,

@@ -38,7 +38,7 @@
 //!   failures, units it stalled on, units it held when it was lost), is blocked: it gets no more units of this
 //!   job, and is not called back. Each unit is charged once, however many ways it failed.
 //! - **A result is accepted only from the assignment that is still current**: a late result from a worker that
-//!   was declared lost, dropped or timed out is [`Completion::Unknown`] (or a duplicate, if the strip is done by
+//!   was declared lost, blocked or timed out is [`Completion::Unknown`] (or a duplicate, if the strip is done by
 //!   then), never counted twice. The strip has already been given to someone else by then.
 
 mod types;
@@ -479,7 +479,7 @@ impl Scheduler {
 
     /// Assignments past their deadline at `now`, in (strip, worker) order. The caller cancels each and reports it
     /// with [`Scheduler::failed`] (e.g. [`StripFailure::timed_out`]); until then it is listed again. If a report
-    /// drops the worker, its later entries are already withdrawn and report as [`FailureOutcome::Ignored`].
+    /// blocks the worker, its later entries are already withdrawn and report as [`FailureOutcome::Ignored`].
     pub fn expired(&self, now: Duration) -> Vec<(WorkerId, StripId)> {
         self.flights
             .iter()
@@ -548,7 +548,7 @@ impl Scheduler {
         true
     }
 
-    /// Whether no worker is active (none registered, or all lost or dropped): the caller should stop and say so.
+    /// Whether no worker is active (none registered, or all lost or blocked): the caller should stop and say so.
     /// Strips not done stay pending.
     pub fn all_workers_gone(&self) -> bool {
         !self.workers.values().any(|w| w.stats.state == WorkerState::Active)

@@ -679,7 +679,7 @@ fn a_lost_worker_rejoins_with_its_numbers_and_takes_strips_again() {
     let held = s.assign(W0, secs(1.0)).unwrap();
     assert_eq!(s.worker_lost(W0, secs(2.0)), vec![held.strip]);
     assert_eq!(s.assign(W0, secs(2.0)), None, "a lost worker takes nothing");
-    // Only a lost worker rejoins; an active or dropped one, or an unknown id, does not.
+    // Only a lost worker rejoins; an active or blocked one, or an unknown id, does not.
     assert!(!s.rejoin(W1, 4));
     assert!(!s.rejoin(W2, 4));
     assert!(s.rejoin(W0, 8));
