@@ -3,9 +3,10 @@
 //!
 //! What is modelled:
 //! - the coordinator prepares the job (serially, [`SimJob::prepare_s`]), then uploads the blobs to every
-//!   worker over its own link, one after another (first come, first served: the last worker waits for all the
-//!   others' uploads, as on a shared link), or, with [`SimJob::relay`], to one worker at a time while every
-//!   worker holding them sends them on to one more ([`crate::fleet::swarm`]); a worker decodes them
+//!   worker at once, the uploads sharing its link fairly (each at most its worker's link: with N workers behind
+//!   one link every worker holds them after N blob times, as measured on namespaced hosts), or, with
+//!   [`SimJob::relay`], to one worker at a time while every worker holding them sends them on to one more
+//!   ([`crate::fleet::swarm`]); a worker decodes them
 //!   ([`SimJob::load_core_s`]) and is ready;
 //! - a worker renders one unit at a time on all its cores, at `cores × core_speed × thread_efficiency`
 //!   reference cores, and holds up to the policy's `max_in_flight` units;
@@ -198,11 +199,13 @@ impl<'a> Sim<'a> {
             last_ready: job.prepare_s,
             end: job.prepare_s,
         };
-        // Uploads one after another on the coordinator's link, or passed on in rounds.
+        // Uploads all at once, sharing the coordinator's link fairly (TCP's share; measured in docs/RESULTS.md,
+        // "The farm on a network"), or passed on in rounds of one transfer each.
         let upload = job.blob_bytes / net.coordinator_bps.min(net.worker_bps);
+        let shared = job.blob_bytes / net.worker_bps.min(net.coordinator_bps / workers.len().max(1) as f64);
         for (i, w) in workers.iter().enumerate() {
-            let transfers = if job.relay { f64::from((i + 1).ilog2() + 1) } else { (i + 1) as f64 };
-            let held = job.prepare_s + transfers * upload;
+            let moving = if job.relay { f64::from((i + 1).ilog2() + 1) * upload } else { shared };
+            let held = job.prepare_s + moving;
             sim.push(held + net.rtt_s + job.load_core_s / sim.speed(i), Kind::Ready(i));
             if let Some(t) = w.dies_at {
                 sim.push(t, Kind::Dies(i));
@@ -443,7 +446,7 @@ mod tests {
         let j = SimJob { blob_bytes: 250e6, ..job(400, 4) };
         let net = Network { coordinator_bps: 125e6, ..Network::gigabit() };
         let r = simulate(&j, &same(4, 4), &net, Policy::default());
-        // Four 2 s uploads one after another: the last worker is ready 8 s (and its decode) after preparing.
+        // Four 2 s uploads sharing one link: every worker is ready 8 s (and its decode) after preparing.
         assert!((r.ship_s - (8.0 + net.rtt_s + 0.5 / 4.0)).abs() < 1e-6, "{r:?}");
         // Passed on among the workers: 1 + 2 + 4 hold them after three transfers, the 8th after four.
         let relayed = SimJob { relay: true, ..j };

@@ -10,7 +10,8 @@
 //!
 //! The build selects what `cargo test --workspace` selects, so that Cargo unifies the same features and the
 //! binaries reuse every library the tests compiled: the whole workspace, with its dev-dependencies (which
-//! `--examples` brings in, building only `coordinator/examples/`, which `cargo test` builds too). A build of the
+//! `--examples` brings in, building only `coordinator/examples/` and `tests/examples/`, which `cargo test` builds
+//! too). A build of the
 //! binaries' packages alone would see other features: criterion, photon-core's dev-dependency, turns on
 //! `either`'s `use_std` and more of `regex-automata`, which rayon and tracing-subscriber share with the binaries,
 //! so the four photon libraries and 17 crates under them (rayon, kiddo, tracing-subscriber, prost, tonic-prost,
@@ -339,14 +340,17 @@ impl WorkerRow {
     pub fn find(stdout: &str, addr: &str) -> Option<Self> {
         let line = stdout.lines().find(|l| l.starts_with(addr))?;
         let w: Vec<&str> = line.split_whitespace().collect();
+        // The platform is two words ("x86_64 linux"), or "-" for a worker never greeted: the threads column is
+        // the first number after the name.
+        let t = 1 + w.get(1..)?.iter().position(|c| c.parse::<u32>().is_ok())?;
         Some(Self {
             line: line.to_owned(),
-            units: w.get(4)?.parse().ok()?,
-            shipped: format!("{} {}", w.get(7)?, w.get(8)?),
-            from_peers: format!("{} {}", w.get(9)?, w.get(10)?),
-            photon_paths: w.get(13)?.parse().ok()?,
-            speculative: w.get(15)?.split('/').next()?.parse().ok()?,
-            state: w.get(17..)?.join(" "),
+            units: w.get(t + 1)?.parse().ok()?,
+            shipped: format!("{} {}", w.get(t + 4)?, w.get(t + 5)?),
+            from_peers: format!("{} {}", w.get(t + 6)?, w.get(t + 7)?),
+            photon_paths: w.get(t + 10)?.parse().ok()?,
+            speculative: w.get(t + 12)?.split('/').next()?.parse().ok()?,
+            state: w.get(t + 14..)?.join(" "),
         })
     }
 }

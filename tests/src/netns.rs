@@ -104,10 +104,13 @@ impl Lab {
         c
     }
 
-    /// Shapes host `i`'s link to `rate` (tc's units: `100mbit`, `1gbit`) both ways, with a token bucket (`tbf`)
-    /// on each end of its veth pair.
-    pub fn shape(&self, i: usize, rate: &str) {
-        let tbf = ["root", "tbf", "rate", rate, "burst", "256kb", "latency", "200ms"];
+    /// Shapes host `i`'s link to `mbit_per_s` megabits per second both ways, with a token bucket (`tbf`) on each
+    /// end of its veth pair. The bucket holds 256 KiB, or 10 ms of traffic where that is more (a bucket smaller
+    /// than a timer tick's traffic caps the rate below the one asked for).
+    pub fn shape(&self, i: usize, mbit_per_s: u32) {
+        let rate = format!("{mbit_per_s}mbit");
+        let burst = format!("{}kb", (u64::from(mbit_per_s) * 1_000_000 / 8 / 100 / 1024).max(256));
+        let tbf = ["root", "tbf", "rate", &rate, "burst", &burst, "latency", "200ms"];
         let ns = self.ns(i);
         tc(&[&["-n", &ns, "qdisc", "replace", "dev", "eth0"][..], &tbf].concat());
         let (br, port) = (self.bridge_ns(), format!("p{i}"));

@@ -102,6 +102,7 @@ async fn calls_over_the_per_peer_cap_are_refused_naming_it() {
         protocol_version: photon_proto::PROTOCOL_VERSION,
         build_id: photon_proto::BUILD_ID.into(),
         crate_version: photon_proto::CRATE_VERSION.into(),
+        probe: Vec::new(),
     };
     let mut c = client(&w).await;
     c.hello(hello()).await.unwrap();
@@ -136,6 +137,7 @@ async fn hostile_requests_are_refused_and_the_worker_then_renders_a_correct_stri
         protocol_version: photon_proto::PROTOCOL_VERSION,
         build_id: "x".repeat(1 << 20),
         crate_version: photon_proto::CRATE_VERSION.into(),
+        probe: Vec::new(),
     };
     let e = c.hello(hello).await.unwrap_err();
     assert_eq!(e.code(), Code::FailedPrecondition, "{e:?}");

@@ -27,6 +27,7 @@ fn hello() -> pb::HelloRequest {
         protocol_version: photon_proto::PROTOCOL_VERSION,
         build_id: photon_proto::BUILD_ID.into(),
         crate_version: photon_proto::CRATE_VERSION.into(),
+        probe: Vec::new(),
     }
 }
 

@@ -52,6 +52,10 @@ const SHIP_JOB: &[&str] = &[
     "2",
 ];
 
+/// The photon-map method with 200k-path maps (about 12 MB), 12 strips of 6 rows, the delivery left to the test.
+const MAPS_JOB: &[&str] =
+    &["--size", "96x72", "--spp", "4", "--integrator", "photon-map", "--photons", "200000", "--rows-per-strip", "6"];
+
 const LIMIT: Duration = Duration::from_secs(240);
 /// What the coordinator logs when it issues a silent worker's units again.
 const STALL_LINE: &str = "stalled: issuing its units again";
@@ -73,8 +77,8 @@ fn render_command(mut cmd: Command, out: &Path, job: &[&str], extra: &[&str]) ->
 
 /// The uninterrupted in-process render of a job, once per test process and job.
 fn reference(job: &'static [&'static str]) -> Vec<u32> {
-    static REFS: [OnceLock<Vec<u32>>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
-    let i = [PATH_JOB, PASS_JOB, SHIP_JOB].iter().position(|j| *j == job).unwrap();
+    static REFS: [OnceLock<Vec<u32>>; 4] = [OnceLock::new(), OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    let i = [PATH_JOB, PASS_JOB, SHIP_JOB, MAPS_JOB].iter().position(|j| *j == job).unwrap();
     REFS[i]
         .get_or_init(|| {
             let out = temp_dir("netfaults", &format!("ref-{i}")).join("ref.exr");
@@ -218,7 +222,7 @@ fn a_flapping_link_loses_nothing() {
 #[test]
 fn a_reply_lost_after_the_unit_finished_is_counted_once() {
     let Some(farm) = Farm::start(2, &["--threads", "1", "--test-delay-ms", "200"]) else { return };
-    farm.lab.shape(1, "4mbit");
+    farm.lab.shape(1, 4);
     let out = temp_dir("netfaults", "lost-reply").join("out.exr");
     let render = farm.render(&out, PASS_JOB, &[]);
     // Once a first result of it was accepted (its speed is measured), the next block it finishes: what it
@@ -241,7 +245,7 @@ fn a_reply_lost_after_the_unit_finished_is_counted_once() {
 fn a_link_cut_during_a_blob_upload_then_restored_loses_nothing() {
     // 400 ms a strip: the other worker alone would take about 10 s, longer than the upload and its cut.
     let Some(farm) = Farm::start(2, &["--threads", "1", "--test-delay-ms", "400"]) else { return };
-    farm.lab.shape(1, "20mbit");
+    farm.lab.shape(1, 20);
     let out = temp_dir("netfaults", "cut-upload").join("out.exr");
     let before = farm.lab.rx_bytes(1);
     let render = farm.render(&out, SHIP_JOB, &[]);
@@ -258,4 +262,51 @@ fn a_link_cut_during_a_blob_upload_then_restored_loses_nothing() {
     let rows = check(&o, &out, SHIP_JOB, 24, &farm);
     assert!(!rows[0].state.starts_with("refused"), "the upload did not survive the cut: {}", text(&o));
     assert!(rows[0].shipped.ends_with("MiB"), "the map was shipped to it: {}", rows[0].line);
+}
+
+/// The delivery a render's summary line names (`--photon-maps` forced or chosen).
+fn delivery_of(o: &Output) -> &'static str {
+    let all = text(o);
+    [("traced by each worker", "trace"), ("passed among the workers", "peers"), ("traced here and shipped", "ship")]
+        .into_iter()
+        .find(|(words, _)| all.contains(words))
+        .map(|(_, mode)| mode)
+        .unwrap_or_else(|| panic!("the summary names no photon-map delivery: {all}"))
+}
+
+/// The coordinator's link at 100 Mbit/s and four workers: each delivery of a 12 MB photon map is timed on fresh
+/// workers (nothing cached), then `auto` must choose one the measured times favour (within 20 % of the fastest:
+/// the runs are noisy on a shared machine), having measured the link near its 12.5 MB/s, and render the same
+/// bits.
+#[test]
+fn behind_a_100_mbit_link_auto_chooses_the_delivery_the_measured_times_favour() {
+    let mut times = Vec::new();
+    for mode in ["ship", "peers", "trace", "auto"] {
+        let Some(farm) = Farm::start(4, &["--threads", "1"]) else { return };
+        farm.lab.shape(0, 100);
+        let out = temp_dir("netfaults", &format!("delivery-{mode}")).join("out.exr");
+        let t = Instant::now();
+        let o = farm.render(&out, MAPS_JOB, &["--photon-maps", mode]).finish(LIMIT);
+        let secs = t.elapsed().as_secs_f64();
+        check(&o, &out, MAPS_JOB, 12, &farm);
+        eprintln!("100 Mbit/s coordinator link, 4 workers, --photon-maps {mode}: {secs:.2} s");
+        if mode != "auto" {
+            assert_eq!(delivery_of(&o), mode, "{}", text(&o));
+            times.push((mode, secs));
+            continue;
+        }
+        let chosen = delivery_of(&o);
+        let all = text(&o);
+        let measured: f64 = all
+            .split("link measured at ")
+            .nth(1)
+            .and_then(|rest| rest.split(' ').next())
+            .and_then(|mb| mb.parse().ok())
+            .unwrap_or_else(|| panic!("auto did not measure the link: {all}"));
+        assert!((7.5..=13.0).contains(&measured), "a 100 Mbit/s link measured at {measured} MB/s: {all}");
+        let best = times.iter().map(|t| t.1).fold(f64::INFINITY, f64::min);
+        let of_chosen = times.iter().find(|t| t.0 == chosen).map(|t| t.1).unwrap();
+        assert!(of_chosen <= 1.2 * best, "auto chose {chosen} ({of_chosen:.2} s) where {times:?} were measured: {all}");
+        eprintln!("auto chose {chosen}, the link measured at {measured} MB/s; measured {times:?}");
+    }
 }

@@ -28,6 +28,7 @@ async fn hello(c: &mut RenderClient<Channel>, protocol_version: u32) -> Result<p
         protocol_version,
         build_id: photon_proto::BUILD_ID.into(),
         crate_version: photon_proto::CRATE_VERSION.into(),
+        probe: Vec::new(),
     };
     c.hello(req).await.map(|r| r.into_inner())
 }

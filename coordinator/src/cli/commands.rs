@@ -222,8 +222,9 @@ async fn stop_live(server: LiveServer, serve_after: bool, interrupts: &mut Inter
 }
 
 /// The workers as the photon-map delivery model sees them: their threads, this machine's threads, and the link
-/// between them. Remote workers are greeted for their threads; the greetings are returned for the render's
-/// sessions, which then say no second hello.
+/// between them. Remote workers are greeted for their threads and their link is measured
+/// ([`fleet::measure_link`]); the greetings are returned for the render's sessions, which then say no second
+/// hello.
 async fn model_farm(
     spec: &fleet::FleetSpec,
     fleet: &fleet::Fleet,
@@ -246,7 +247,11 @@ async fn model_farm(
     };
     // Workers on this machine share its one link, whether started here or listed by a loopback address.
     let shared_link = !matches!(spec, fleet::FleetSpec::Remote(_)) || fleet.addrs.iter().all(|a| a.is_loopback());
-    (delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link }, greetings)
+    // A remote farm's link is measured: a lab's may be 100 Mbit/s or 10 Gbit/s, and the choice turns on it.
+    let measured = if shared_link { None } else { fleet::measure_link(&mut greetings).await };
+    let link_bytes_per_s = measured.unwrap_or(link_bytes_per_s);
+    let farm = delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link, measured };
+    (farm, greetings)
 }
 
 /// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is

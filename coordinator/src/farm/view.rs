@@ -93,11 +93,12 @@ impl Farm<'_> {
                         WorkerState::Active if s.rejoins > 1 => format!("ok (rejoined {} times)", s.rejoins),
                         WorkerState::Active => "ok".into(),
                     },
-                    (None, None) => "ok".into(),
+                    // Never added to the scheduler: still being greeted or supplied when the last unit came in.
+                    (None, None) => "not ready (the render ended first)".into(),
                 };
                 WorkerReport {
                     name: m.addr.name.clone(),
-                    platform: m.hello.as_ref().map(|h| format!("{} {}", h.arch, h.os)).unwrap_or_default(),
+                    platform: m.hello.as_ref().map_or_else(|| "-".into(), |h| format!("{} {}", h.arch, h.os)),
                     threads: m.hello.as_ref().map_or(0, |h| h.threads),
                     strips,
                     busy_s,

@@ -219,6 +219,28 @@ pub fn threads(greetings: &[Option<Greeting>]) -> Vec<u32> {
     greetings.iter().flatten().map(|g| g.hello.threads).collect()
 }
 
+/// Bytes per second of the coordinator's link to the greeted workers: the median of each worker's
+/// [`session::probe_link`], measured one worker at a time so that each probe has this machine's link to itself
+/// (as the uploads of a shipped map share it). Each of a worker's two probes carries 512 KiB, less on a farm of
+/// more than 16 workers (8 MiB a round in all, 64 KiB at least), within 5 s a worker (a slower one is left out).
+/// `None` when no probe could be timed.
+pub async fn measure_link(greetings: &mut [Option<Greeting>]) -> Option<f64> {
+    let n = greetings.iter().flatten().count().max(1);
+    let bytes = ((8usize << 20) / n).clamp(64 << 10, 512 << 10);
+    let mut rates = Vec::new();
+    for g in greetings.iter_mut().flatten() {
+        let probe = session::probe_link(&mut g.client, bytes);
+        match tokio::time::timeout(Duration::from_secs(5), probe).await {
+            Ok(Ok(Some(rate))) => rates.push(rate),
+            Ok(Ok(None)) => {}
+            Ok(Err(e)) => tracing::warn!(host = %g.hello.hostname, "probing the link failed: {e}"),
+            Err(_) => tracing::warn!(host = %g.hello.hostname, "probing the link took too long"),
+        }
+    }
+    rates.sort_by(f64::total_cmp);
+    rates.get(rates.len() / 2).copied()
+}
+
 /// A host list file:
 ///
 /// ```toml

@@ -387,10 +387,35 @@ async fn through_swarm(
 
 /// Says hello: the worker answers with what it is, or refuses another protocol or build (or a wrong token).
 pub async fn hello(client: &mut Client) -> Result<pb::HelloReply, SessionError> {
+    hello_carrying(client, Vec::new()).await
+}
+
+/// Measures the link to a worker that answered a hello, in bytes per second: `bytes` of padding
+/// ([`pb::HelloRequest::probe`]) over the time a hello carrying them takes beyond an empty one (the round trip
+/// and the worker's answer). The faster of two tries; `None` when the difference is too small to time (a link
+/// much faster than the probe needs). `bytes` is at most [`photon_proto::MAX_CHUNK`].
+pub async fn probe_link(client: &mut Client, bytes: usize) -> Result<Option<f64>, SessionError> {
+    let bytes = bytes.min(photon_proto::MAX_CHUNK);
+    let t = std::time::Instant::now();
+    hello_carrying(client, Vec::new()).await?;
+    let empty = t.elapsed().as_secs_f64();
+    let mut best = f64::INFINITY;
+    for _ in 0..2 {
+        let t = std::time::Instant::now();
+        hello_carrying(client, vec![0; bytes]).await?;
+        best = best.min(t.elapsed().as_secs_f64());
+    }
+    let extra = best - empty;
+    // Under 100 µs the timer and the scheduler's noise are the measurement.
+    Ok((extra > 1e-4).then(|| bytes as f64 / extra))
+}
+
+async fn hello_carrying(client: &mut Client, probe: Vec<u8>) -> Result<pb::HelloReply, SessionError> {
     let request = pb::HelloRequest {
         protocol_version: photon_proto::PROTOCOL_VERSION,
         build_id: photon_proto::BUILD_ID.to_owned(),
         crate_version: photon_proto::CRATE_VERSION.to_owned(),
+        probe,
     };
     // A peer that accepts the connection and never answers must not hang the render.
     tokio::time::timeout(ANSWER_TIMEOUT, client.hello(request))

@@ -9,8 +9,9 @@
 //! ([`Calibration`]). For each mode the model gives the mean time until a worker holds its maps
 //! ([`Estimate`]):
 //!
-//! - ship: `(P·t_path + build(n)) / T_c + encode(B) + (N+1)/2 · B/link + mean_w (decode(B) + build(n)) / T_w`,
-//!   the uploads sharing the coordinator's link, so the i-th worker waits for i blobs;
+//! - ship: `(P·t_path + build(n)) / T_c + encode(B) + N · B/link + mean_w (decode(B) + build(n)) / T_w`,
+//!   the N uploads running at once and sharing the coordinator's link fairly, so every worker waits for N blob
+//!   times (measured on namespaced hosts: docs/RESULTS.md, "The farm on a network");
 //! - peers: the same with `mean_i (⌊log₂ i⌋ + 1) · B/link` for the upload, the i-th worker receiving in round
 //!   ⌊log₂ i⌋ + 1 over links of its own (the holders double each round); workers on this machine share one
 //!   link, and then peers cost what shipping does;
@@ -19,8 +20,10 @@
 //! with `P` photon paths of `n` photons in a blob of `B` bytes, `T_c` threads here, `N` workers of `T_w`
 //! threads, and `build(n) ∝ n log n` (sorting and the kd-tree). Tracing and building are taken to scale
 //! linearly with threads, which favours neither mode. The link is loopback for in-process and `--local`
-//! workers (300 MB/s, measured in docs/RESULTS.md "Shipping photon maps") and 1 Gbit/s (125 MB/s) for
-//! remote ones.
+//! workers (300 MB/s, measured in docs/RESULTS.md "Shipping photon maps"); for remote ones it is measured before
+//! the job is prepared ([`crate::fleet::measure_link`]: the median over the workers of a padded hello's bytes
+//! per second), and taken as 1 Gbit/s (125 MB/s) where no probe could be timed. The peers' links are taken to
+//! be as fast as the coordinator's; where the coordinator's alone is slow, peers are underestimated.
 
 use photon_core::codec;
 use photon_core::photon::{PhotonMap, PhotonMaps};
@@ -86,11 +89,16 @@ pub struct Farm {
     pub link_bytes_per_s: f64,
     /// The workers run on this machine and share its one link (loopback).
     pub shared_link: bool,
+    /// Bytes per second of the link as measured before the job was prepared (`link_bytes_per_s` is then this);
+    /// `None` when it was assumed.
+    pub measured: Option<f64>,
 }
 
 /// The model's mean seconds until a worker holds the maps, for each mode.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
+    /// The link's bytes per second, when it was measured ([`Farm::measured`]).
+    pub measured_link: Option<f64>,
     /// Shipped from here.
     pub ship_s: f64,
     /// Traced by each worker.
@@ -170,12 +178,13 @@ impl Calibration {
             sum / workers
         };
         let prepare = (trace + build) / threads_c + self.encode_s_per_byte * bytes;
-        let upload = (workers + 1.0) / 2.0 * bytes / farm.link_bytes_per_s;
+        let upload = workers * bytes / farm.link_bytes_per_s;
         let load = mean_over_workers(&|t| self.decode_s_per_byte * bytes + build / t);
         let n = farm.worker_threads.len().max(1);
         let rounds = (1..=n).map(|i| f64::from(i.ilog2() + 1)).sum::<f64>() / n as f64;
         let relay = if farm.shared_link { upload } else { rounds * bytes / farm.link_bytes_per_s };
         Estimate {
+            measured_link: farm.measured,
             ship_s: prepare + upload + load,
             trace_s: mean_over_workers(&|t| (trace + build) / t),
             peers_s: prepare + relay + load,
@@ -216,11 +225,17 @@ impl fmt::Display for Decision {
         };
         match (self.forced, self.estimate) {
             (true, _) => write!(f, "{what} (--photon-maps)"),
-            (false, Some(e)) => write!(
-                f,
-                "{what} (modelled {:.2} s traced, {:.2} s shipped, {:.2} s among peers)",
-                e.trace_s, e.ship_s, e.peers_s
-            ),
+            (false, Some(e)) => {
+                write!(
+                    f,
+                    "{what} (modelled {:.2} s traced, {:.2} s shipped, {:.2} s among peers",
+                    e.trace_s, e.ship_s, e.peers_s
+                )?;
+                match e.measured_link {
+                    Some(bps) => write!(f, "; link measured at {:.1} MB/s)", bps / 1e6),
+                    None => write!(f, ")"),
+                }
+            }
             (false, None) => write!(f, "{what}"),
         }
     }
@@ -248,6 +263,7 @@ mod tests {
             coordinator_threads: coordinator,
             link_bytes_per_s: link,
             shared_link: link == LOOPBACK_BYTES_PER_S,
+            measured: None,
         }
     }
 
@@ -287,21 +303,42 @@ mod tests {
     #[test]
     fn peers_win_where_shipping_would_and_the_link_is_the_cost() {
         // The costly scene of weak_workers_get_costly_maps_shipped, on 52 one-thread machines behind 1 Gbit/s:
-        // shipping beats tracing, and passing the blob on among the workers beats shipping it 52 times.
+        // 52 uploads sharing one link cost more than tracing, and passing the blob on among the workers beats
+        // both.
         let costly = Calibration { trace_s_per_path: 1.5e-5, ..calibration() };
         let lab = farm(&[1; 52], 16, LINK_BYTES_PER_S);
         let e = costly.estimate(4_000_000, &lab);
-        assert!(e.peers_s < e.ship_s && e.ship_s < e.trace_s, "{e:?}");
-        // The i-th worker receives in round ⌊log₂ i⌋ + 1: 52 workers wait 4.90 blob times on average, not 26.5.
+        assert!(e.peers_s < e.trace_s && e.trace_s < e.ship_s, "{e:?}");
+        // The i-th worker receives in round ⌊log₂ i⌋ + 1: 52 workers wait 4.90 blob times on average, not the 52
+        // of uploads sharing one link.
         let bytes = 4e6 * 1.67 * 36.0;
         let saved = e.ship_s - e.peers_s;
-        assert!((saved - (26.5 - 255.0 / 52.0) * bytes / LINK_BYTES_PER_S).abs() < 1e-6 * saved, "{e:?}");
+        assert!((saved - (52.0 - 255.0 / 52.0) * bytes / LINK_BYTES_PER_S).abs() < 1e-6 * saved, "{e:?}");
         // One worker: one upload either way.
         let one = costly.estimate(4_000_000, &farm(&[1], 16, LINK_BYTES_PER_S));
         assert!((one.peers_s - one.ship_s).abs() < 1e-9, "{one:?}");
         // Workers on this machine share its link: passing the blob on saves nothing.
         let local = costly.estimate(4_000_000, &farm(&[1; 16], 16, LOOPBACK_BYTES_PER_S));
         assert_eq!(local.peers_s, local.ship_s);
+    }
+
+    #[test]
+    fn the_link_decides_between_passing_the_maps_on_and_tracing_them() {
+        // The costly scene on eight two-thread workers beside a 16-thread coordinator: over 1 Gbit/s the blob is
+        // best passed among peers; over the 100 Mbit/s that fleet::measure_link would find on a slower lab,
+        // each worker tracing the paths itself is cheaper than 2.6 blob times at a tenth of the speed.
+        let costly = Calibration { trace_s_per_path: 1.5e-5, ..calibration() };
+        let mut lab = farm(&[2; 8], 16, LINK_BYTES_PER_S);
+        let gigabit = costly.estimate(4_000_000, &lab);
+        assert!(gigabit.peers_s < gigabit.trace_s && gigabit.peers_s < gigabit.ship_s, "{gigabit:?}");
+        lab.link_bytes_per_s = 12.5e6;
+        lab.measured = Some(12.5e6);
+        let slow = costly.estimate(4_000_000, &lab);
+        assert!(slow.trace_s < slow.peers_s && slow.peers_s < slow.ship_s, "{slow:?}");
+        // Tracing does not depend on the link; the uploads scale with its time per byte.
+        assert_eq!(slow.trace_s, gigabit.trace_s);
+        let decision = Decision { mode: MapDelivery::Trace, forced: false, estimate: Some(slow) };
+        assert!(decision.to_string().ends_with("; link measured at 12.5 MB/s)"), "{decision}");
     }
 
     #[test]
