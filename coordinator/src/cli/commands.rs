@@ -250,7 +250,9 @@ async fn model_farm(
     // A remote farm's link is measured: a lab's may be 100 Mbit/s or 10 Gbit/s, and the choice turns on it.
     let measured = if shared_link { None } else { fleet::measure_link(&mut greetings).await };
     let link_bytes_per_s = measured.unwrap_or(link_bytes_per_s);
-    let farm = delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link, measured };
+    let link_measured = measured.is_some();
+    let farm =
+        delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link, link_measured };
     (farm, greetings)
 }
 

@@ -89,15 +89,14 @@ pub struct Farm {
     pub link_bytes_per_s: f64,
     /// The workers run on this machine and share its one link (loopback).
     pub shared_link: bool,
-    /// Bytes per second of the link as measured before the job was prepared (`link_bytes_per_s` is then this);
-    /// `None` when it was assumed.
-    pub measured: Option<f64>,
+    /// Whether `link_bytes_per_s` was measured before the job was prepared (rather than assumed).
+    pub link_measured: bool,
 }
 
 /// The model's mean seconds until a worker holds the maps, for each mode.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Estimate {
-    /// The link's bytes per second, when it was measured ([`Farm::measured`]).
+    /// The link's bytes per second, when it was measured ([`Farm::link_measured`]).
     pub measured_link: Option<f64>,
     /// Shipped from here.
     pub ship_s: f64,
@@ -184,7 +183,7 @@ impl Calibration {
         let rounds = (1..=n).map(|i| f64::from(i.ilog2() + 1)).sum::<f64>() / n as f64;
         let relay = if farm.shared_link { upload } else { rounds * bytes / farm.link_bytes_per_s };
         Estimate {
-            measured_link: farm.measured,
+            measured_link: farm.link_measured.then_some(farm.link_bytes_per_s),
             ship_s: prepare + upload + load,
             trace_s: mean_over_workers(&|t| (trace + build) / t),
             peers_s: prepare + relay + load,
@@ -263,7 +262,7 @@ mod tests {
             coordinator_threads: coordinator,
             link_bytes_per_s: link,
             shared_link: link == LOOPBACK_BYTES_PER_S,
-            measured: None,
+            link_measured: false,
         }
     }
 
@@ -332,7 +331,7 @@ mod tests {
         let gigabit = costly.estimate(4_000_000, &lab);
         assert!(gigabit.peers_s < gigabit.trace_s && gigabit.peers_s < gigabit.ship_s, "{gigabit:?}");
         lab.link_bytes_per_s = 12.5e6;
-        lab.measured = Some(12.5e6);
+        lab.link_measured = true;
         let slow = costly.estimate(4_000_000, &lab);
         assert!(slow.trace_s < slow.peers_s && slow.peers_s < slow.ship_s, "{slow:?}");
         // Tracing does not depend on the link; the uploads scale with its time per byte.
