@@ -6,7 +6,7 @@
 //! Run with `cargo bench -p photon-core --bench bvh`. Coherent rays come from a 256×256 pinhole camera looking at
 //! the mesh; incoherent rays start at uniform points in the mesh's bounds and go in uniform directions; both have
 //! an infinite `tmax`. Rays are split over the threads in chunks of 256. Bytes per triangle count the BVH alone
-//! and the BVH plus the primitive array traversal reads.
+//! (nodes and triangle blocks, which hold the vertices) and with the scene's primitive array.
 
 #[allow(dead_code)]
 mod shared {
@@ -15,10 +15,10 @@ mod shared {
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
-use photon_core::geometry::bvh::Bvh;
+use photon_core::geometry::bvh::TriBvh;
 use photon_core::geometry::shapes::{Shape, Triangle};
 use photon_core::geometry::{Geometry, NONE, Primitive};
-use photon_core::math::{Aabb, Ray};
+use photon_core::math::Ray;
 use rayon::prelude::*;
 use shared::meshes::{bumpy_icosphere, camera_rays, random_rays};
 use std::hint::black_box;
@@ -27,7 +27,9 @@ use std::time::Duration;
 fn geometry(tris: &[Triangle]) -> Geometry {
     let prims =
         tris.iter().map(|&t| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: 0 }).collect();
-    Geometry::new(prims, Vec::new(), Vec::new())
+    let g = Geometry::new(prims, Vec::new(), Vec::new());
+    g.build_trees();
+    g
 }
 
 /// Traces every ray to its closest hit through the BVH (`Geometry::closest_bounded`, what `Geometry::intersect`
@@ -54,15 +56,18 @@ fn bench(c: &mut Criterion) {
         let vertex = |i: u32| Vec3::from_array(vertices[i as usize]);
         let tris: Vec<Triangle> =
             faces.iter().map(|f| Triangle::new(vertex(f[0]), vertex(f[1]), vertex(f[2]))).collect();
-        let bounds: Vec<Aabb> = tris.iter().map(Triangle::bounds).collect();
+        let indexed: Vec<(u32, Triangle)> = tris.iter().enumerate().map(|(i, &t)| (i as u32, t)).collect();
         let g = geometry(&tris);
-        let bytes = g.bvh.memory_bytes();
+        let bytes = g.bvh_bytes();
         let prim_bytes = g.prims.len() * std::mem::size_of::<Primitive>();
         println!(
-            "bvh {label}: {} triangles, {} nodes, depth {}, {} bytes = {:.1} bytes/triangle ({:.1} with primitives)",
+            "bvh {label}: {} triangles, {} nodes, {} blocks, depth {}, SAH cost {:.2}, {} bytes = {:.1} bytes/triangle \
+             ({:.1} with primitives)",
             tris.len(),
-            g.bvh.node_count(),
-            g.bvh.depth(),
+            g.triangle_tree().node_count(),
+            g.triangle_tree().block_count(),
+            g.triangle_tree().depth(),
+            g.triangle_tree().sah_cost(),
             bytes,
             bytes as f64 / tris.len() as f64,
             (bytes + prim_bytes) as f64 / tris.len() as f64
@@ -74,7 +79,7 @@ fn bench(c: &mut Criterion) {
         for (threads, pool) in &pools {
             group.throughput(Throughput::Elements(tris.len() as u64));
             group.bench_function(format!("build_{threads}t"), |b| {
-                b.iter(|| pool.install(|| Bvh::build(black_box(&bounds))))
+                b.iter(|| pool.install(|| TriBvh::build(black_box(&indexed))))
             });
             for (kind, rays) in [("coherent", &coherent), ("incoherent", &incoherent)] {
                 group.throughput(Throughput::Elements(rays.len() as u64));

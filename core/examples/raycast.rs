@@ -11,13 +11,22 @@
 //! any-hit queries (single rays, `tmax` = ∞) of both ray sets on `THREADS` threads, printing one line per
 //! measurement in the harness's format: `photon NAME THREADS build_s bytes_per_triangle` and
 //! `photon NAME THREADS {closest,any} {coherent,incoherent} Mrays_per_s hits`. Each rate is the median of 5
-//! passes over the rays; the build time is the median of 3 builds.
+//! passes over the rays; the build time is the median of 3 builds, each timed as `embree_rays` times Embree's:
+//! the input ready before the clock starts, the previous build released before it. `... build DIR NAME THREADS`
+//! prints the build line alone.
+//!
+//! `... cost DIR NAME` prints the tree's measures, which timings on a shared machine cannot move: node and block
+//! counts, depth, the SAH cost, and per ray of each set and query the nodes visited, the leaves tested and the
+//! triangles in them. `... one DIR NAME QUERY KIND` runs one pass of one query in a function of its own, for
+//! `valgrind --tool=callgrind --toggle-collect=raycast::one_pass` to count its instructions.
+//! `... obj FILE LEVELS` writes the bumpy icosphere of `20·4^LEVELS` triangles as OBJ, for whole renders.
 
 #[path = "../benches/shared/meshes.rs"]
 mod meshes;
 
 use glam::{Vec3, Vec3A};
 use meshes::{bumpy_icosphere, camera_rays, random_rays};
+use photon_core::geometry::bvh::RayCost;
 use photon_core::geometry::shapes::{Shape, Triangle};
 use photon_core::geometry::{Geometry, NONE, Primitive};
 use photon_core::math::{Aabb, Ray};
@@ -57,6 +66,22 @@ fn write(dir: &Path) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Writes the bumpy icosphere of `20·4^levels` triangles as OBJ text (for whole renders of a large mesh).
+fn write_obj(path: &Path, levels: u32) -> std::io::Result<()> {
+    use std::io::Write;
+    let (v, f) = bumpy_icosphere(levels);
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path)?);
+    for p in &v {
+        writeln!(out, "v {} {} {}", p[0], p[1], p[2])?;
+    }
+    for t in &f {
+        writeln!(out, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+    }
+    out.flush()?;
+    println!("wrote {}: {} vertices, {} triangles", path.display(), v.len(), f.len());
+    Ok(())
+}
+
 fn words(bytes: &[u8]) -> Vec<u32> {
     bytes.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
 }
@@ -86,27 +111,37 @@ fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
-fn time(dir: &Path, name: &str, threads: usize) -> Result<(), Box<dyn std::error::Error>> {
+fn time(dir: &Path, name: &str, threads: usize, build_only: bool) -> Result<(), Box<dyn std::error::Error>> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build()?;
     let tris = read_mesh(&dir.join(format!("{name}.mesh")))?;
     let prims: Vec<Primitive> =
         tris.iter().map(|&t| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: 0 }).collect();
-    // The build as the coordinator runs it: boxes, the BVH, the primitives put in its order.
-    let build = || pool.install(|| Geometry::new(black_box(prims.clone()), Vec::new(), Vec::new()));
+    // The build as a worker runs it on decoding a scene: the trees over the primitives. As embree_rays does, the
+    // input is ready before the clock starts and the previous build is released before it, not within it.
     let mut secs = Vec::new();
+    let mut last = None;
     for _ in 0..3 {
+        drop(last.take());
+        let input = prims.clone();
         let t0 = Instant::now();
-        black_box(build());
+        last = Some(pool.install(|| {
+            let g = Geometry::new(black_box(input), Vec::new(), Vec::new());
+            g.build_trees();
+            g
+        }));
         secs.push(t0.elapsed().as_secs_f64());
     }
-    let g = build();
-    let bytes = g.bvh.memory_bytes() + g.prims.len() * std::mem::size_of::<Primitive>();
+    let g = last.ok_or("no build")?;
+    let bytes = g.bvh_bytes() + g.prims.len() * std::mem::size_of::<Primitive>();
     println!(
         "photon {name} {threads} build {:.4} {:.1} {:016x}",
         median(secs),
         bytes as f64 / tris.len() as f64,
-        g.bvh.structure_hash()
+        g.triangle_tree().structure_hash()
     );
+    if build_only {
+        return Ok(());
+    }
     for kind in ["coherent", "incoherent"] {
         let rays = read_rays(&dir.join(format!("{name}.{kind}.rays")))?;
         // The queries as `Geometry::intersect` and `Geometry::occluded` make them, without the hit's shading data
@@ -129,12 +164,82 @@ fn time(dir: &Path, name: &str, threads: usize) -> Result<(), Box<dyn std::error
     Ok(())
 }
 
+/// The tree's measures, deterministic where timings are not: its SAH cost, and per ray of each set the nodes
+/// visited, the leaves (triangle blocks) tested and the triangles in them, for closest and any hit.
+fn cost(dir: &Path, name: &str) -> Result<(), Box<dyn std::error::Error>> {
+    let tris = read_mesh(&dir.join(format!("{name}.mesh")))?;
+    let prims: Vec<Primitive> =
+        tris.iter().map(|&t| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: 0 }).collect();
+    let g = Geometry::new(prims, Vec::new(), Vec::new());
+    let t = g.triangle_tree();
+    println!(
+        "{name}: {} triangles, {} nodes, {} blocks ({:.2} triangles a block), depth {}, SAH cost {:.2}",
+        tris.len(),
+        t.node_count(),
+        t.block_count(),
+        tris.len() as f64 / t.block_count() as f64,
+        t.depth(),
+        t.sah_cost()
+    );
+    for kind in ["coherent", "incoherent"] {
+        let rays = read_rays(&dir.join(format!("{name}.{kind}.rays")))?;
+        let n = rays.len() as f64;
+        let (mut closest, mut any) = (RayCost::default(), RayCost::default());
+        for r in &rays {
+            g.closest_triangle_counted(r, f32::INFINITY, &mut closest);
+            g.triangle_occluded_counted(r, f32::INFINITY, &mut any);
+        }
+        for (query, c) in [("closest", closest), ("any", any)] {
+            println!(
+                "  {query} {kind}: per ray {:.2} nodes, {:.2} leaves, {:.2} triangles",
+                c.nodes as f64 / n,
+                c.leaves as f64 / n,
+                c.prims as f64 / n
+            );
+        }
+    }
+    Ok(())
+}
+
+/// One pass of one query over one ray set, alone in its function so that `valgrind --tool=callgrind
+/// --toggle-collect=raycast::one_pass` counts its instructions: a measure of the walk that this shared machine's
+/// load cannot move.
+#[inline(never)]
+fn one_pass(g: &Geometry, rays: &[Ray], closest: bool) -> usize {
+    if closest {
+        rays.iter().filter(|r| g.closest_bounded(r, f32::INFINITY).is_some()).count()
+    } else {
+        rays.iter().filter(|r| g.occluded(r, f32::INFINITY)).count()
+    }
+}
+
+fn one(dir: &Path, name: &str, query: &str, kind: &str) -> Result<(), Box<dyn std::error::Error>> {
+    let tris = read_mesh(&dir.join(format!("{name}.mesh")))?;
+    let prims: Vec<Primitive> =
+        tris.iter().map(|&t| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: 0 }).collect();
+    let g = Geometry::new(prims, Vec::new(), Vec::new());
+    g.build_trees();
+    let rays = read_rays(&dir.join(format!("{name}.{kind}.rays")))?;
+    let hits = one_pass(&g, &rays, query == "closest");
+    println!("{name} {query} {kind}: {} rays, {hits} hits", rays.len());
+    Ok(())
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     match args.iter().map(String::as_str).collect::<Vec<_>>().as_slice() {
         ["write", dir] => write(Path::new(dir))?,
-        ["time", dir, name, threads] => time(Path::new(dir), name, threads.parse()?)?,
-        _ => return Err("usage: raycast write DIR | raycast time DIR NAME THREADS".into()),
+        ["time", dir, name, threads] => time(Path::new(dir), name, threads.parse()?, false)?,
+        ["build", dir, name, threads] => time(Path::new(dir), name, threads.parse()?, true)?,
+        ["cost", dir, name] => cost(Path::new(dir), name)?,
+        ["one", dir, name, query, kind] => one(Path::new(dir), name, query, kind)?,
+        ["obj", file, levels] => write_obj(Path::new(file), levels.parse()?)?,
+        _ => {
+            return Err(
+                "usage: raycast write DIR | raycast {time,build} DIR NAME THREADS | raycast cost DIR NAME | raycast one DIR \
+             NAME {closest,any} {coherent,incoherent} | raycast obj FILE LEVELS".into()
+            );
+        }
     }
     Ok(())
 }

@@ -13,7 +13,8 @@ pub mod ply;
 pub mod shapes;
 
 use crate::math::{Aabb, Ray, offset_ray_origin_by_error};
-use bvh::Bvh;
+use bvh::walk::RayBox;
+use bvh::{Bvh, RayCost, TriBvh};
 use glam::{Vec2, Vec3A};
 use mask::AlphaMask;
 use serde::{Deserialize, Serialize};
@@ -125,28 +126,72 @@ impl Hit {
 
 /// All the surfaces of a scene.
 ///
-/// Its serialised form (what the scene blob carries) has no BVH: the primitives travel in leaf order and
-/// deserialising builds the tree again, which gives the same tree ([`Bvh::build`]). Shipping the tree would cost
-/// the coordinator's link 35 bytes per triangle for every worker; building it costs each worker, in parallel,
-/// about 1.4 µs per triangle on one thread (docs/RESULTS.md, "Wide BVH"), and a tree that was never on the wire
-/// cannot be a malformed one.
+/// Triangles are under one BVH of four-triangle blocks ([`TriBvh`]), the other bounded shapes under a BVH of
+/// their own ([`Bvh`]), so they cost mesh triangles nothing; infinite planes are tested beside both. The closest
+/// hit is the smallest distance, then the smallest index in `prims` (planes first): no tree decides it.
+///
+/// The trees are built on the first query, or by [`Geometry::build_trees`]: a coordinator that only ships the
+/// scene to its workers never builds them, and its workers build theirs at once, in parallel with each other.
+/// Its serialised form (what the scene blob carries) has no trees: deserialising builds them again, which gives
+/// the same trees ([`Bvh::build`]). Shipping them would cost the coordinator's link about 50 bytes per triangle
+/// for every worker; building them costs each worker, in parallel, under half a microsecond per triangle on one
+/// thread (docs/RESULTS.md, "Rays at Embree's rate"), and a tree that was never on the wire cannot be a malformed
+/// one.
 #[derive(Clone, Debug, Default, Serialize, Deserialize)]
 #[serde(from = "GeometryParts")]
 pub struct Geometry {
-    /// Bounded primitives, in BVH leaf order.
+    /// Bounded primitives, in the order the scene gave them; hits and lights name them by their index here.
     pub prims: Vec<Primitive>,
-    /// The BVH over `prims`.
-    #[serde(skip)]
-    pub bvh: Bvh,
     /// Infinite planes.
     pub planes: Vec<PlanePrimitive>,
     /// Shading data of meshes.
     pub meshes: Vec<MeshShading>,
     /// The cut-outs that meshes' `mask` index.
     pub masks: Vec<AlphaMask>,
+    /// The BVHs over `prims`, once built. The shapes in `prims` must not change after that.
+    #[serde(skip)]
+    trees: std::sync::OnceLock<Trees>,
 }
 
-/// [`Geometry`] as it is deserialised: the same fields but the BVH.
+/// The BVHs of a [`Geometry`].
+#[derive(Clone, Debug, Default)]
+struct Trees {
+    /// Over the triangles of `prims`.
+    triangles: TriBvh,
+    /// Over the other bounded shapes of `prims` (spheres, rectangles).
+    others: Bvh,
+}
+
+impl Trees {
+    fn build(prims: &[Primitive]) -> Trees {
+        let mut tris = Vec::new();
+        let (mut bounds, mut ids) = (Vec::new(), Vec::new());
+        for (i, p) in prims.iter().enumerate() {
+            match p.shape {
+                Shape::Triangle(_) => tris.push(i as u32),
+                s => {
+                    bounds.push(s.bounds());
+                    ids.push(i as u32);
+                }
+            }
+        }
+        let triangle = |k: usize| {
+            let i = tris[k];
+            match prims[i as usize].shape {
+                Shape::Triangle(t) => (i, t),
+                // `tris` holds the indices of triangles only.
+                _ => (i, shapes::Triangle { p: [glam::Vec3::NAN; 3], mesh: shapes::NO_MESH, face: 0 }),
+            }
+        };
+        let (triangles, others) = rayon::join(
+            || TriBvh::build_over(tris.len(), triangle, bvh::tri4::TRIANGLE_LEAVES),
+            || Bvh::build_for(&bounds, &ids),
+        );
+        Trees { triangles, others }
+    }
+}
+
+/// [`Geometry`] as it is deserialised: the same fields but the trees.
 #[derive(Deserialize)]
 struct GeometryParts {
     prims: Vec<Primitive>,
@@ -156,20 +201,35 @@ struct GeometryParts {
 }
 
 impl From<GeometryParts> for Geometry {
+    /// A decoded geometry is a worker's, about to render: its trees are built now.
     fn from(p: GeometryParts) -> Self {
-        Geometry::new(p.prims, p.planes, p.meshes).with_masks(p.masks)
+        let g = Geometry::new(p.prims, p.planes, p.meshes).with_masks(p.masks);
+        g.build_trees();
+        g
     }
 }
 
 impl Geometry {
-    /// Builds the BVH and puts the primitives in its leaf order.
+    /// The geometry of `prims` (which keep their order), `planes` and `meshes`; its trees are built when first
+    /// needed.
     pub fn new(prims: Vec<Primitive>, planes: Vec<PlanePrimitive>, meshes: Vec<MeshShading>) -> Self {
-        let bounds: Vec<Aabb> = prims.iter().map(|p| p.shape.bounds()).collect();
-        let (bvh, order) = Bvh::build(&bounds);
-        // Primitives decoded from a scene blob are in leaf order already (the build over them is the identity).
-        let in_order = order.iter().enumerate().all(|(k, &i)| i as usize == k);
-        let prims = if in_order { prims } else { order.iter().map(|&i| prims[i as usize]).collect() };
-        Self { prims, bvh, planes, meshes, masks: Vec::new() }
+        Self { prims, planes, meshes, masks: Vec::new(), trees: std::sync::OnceLock::new() }
+    }
+
+    /// Builds the trees now, if they are not built yet (on the current rayon pool, deterministically for any
+    /// number of threads).
+    pub fn build_trees(&self) {
+        self.trees();
+    }
+
+    #[inline]
+    fn trees(&self) -> &Trees {
+        self.trees.get_or_init(|| Trees::build(&self.prims))
+    }
+
+    /// The BVH over the triangles.
+    pub fn triangle_tree(&self) -> &TriBvh {
+        &self.trees().triangles
     }
 
     /// The geometry with the cut-outs `masks`, which the meshes' `mask` fields index.
@@ -181,6 +241,12 @@ impl Geometry {
     /// The bounding box of all bounded primitives.
     pub fn bounds(&self) -> Aabb {
         self.prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.shape.bounds()))
+    }
+
+    /// Heap bytes of the two BVHs (nodes, triangle blocks, index table), without `prims`.
+    pub fn bvh_bytes(&self) -> usize {
+        let t = self.trees();
+        t.triangles.memory_bytes() + t.others.memory_bytes()
     }
 
     /// The closest hit in `(0, tmax)`.
@@ -200,30 +266,38 @@ impl Geometry {
         Some(self.hit_data(ray, prim, t))
     }
 
-    /// The closest hit in `(0, tmax)` among the bounded primitives (the BVH's), without planes and without the
+    /// The closest hit in `(0, tmax)` among the bounded primitives (the BVHs'), without planes and without the
     /// hit's surface data: the index into `prims` and the distance. What [`Geometry::intersect`] does before
     /// shading, and what the ray casting benchmarks time.
     pub fn closest_bounded(&self, ray: &Ray, tmax: f32) -> Option<(u32, f32)> {
+        let trees = self.trees();
         let tri = TriangleRay::new(ray);
-        if self.masks.is_empty() {
-            return self.bvh.closest_hit(ray.o, ray.d, tmax, |i, tmax| {
-                self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax)
-            });
-        }
-        self.bvh.closest_hit(ray.o, ray.d, tmax, |i, tmax| self.masked_hit(i, ray, &tri, tmax))
+        // One preparation of the ray for the box tests of both trees.
+        let boxes = RayBox::new(ray.o, ray.d);
+        let best = if self.masks.is_empty() {
+            trees.triangles.closest_prepared(&tri, &boxes, tmax, None, |_, _, _| true, &mut ())
+        } else {
+            let covers = |i, b1, b2| self.covers(i, Vec2::new(b1, b2));
+            trees.triangles.closest_prepared(&tri, &boxes, tmax, None, covers, &mut ())
+        };
+        trees.others.closest_prepared(
+            &boxes,
+            tmax,
+            best,
+            |i, tmax| self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax),
+            &mut (),
+        )
     }
 
-    /// The distance to primitive `i` along `ray` below `tmax`, where a cut-out face is not there: a ray reaching
-    /// it where its alpha is below the cutoff passes through ([`mask`]).
-    #[inline]
-    fn masked_hit(&self, i: u32, ray: &Ray, tri: &TriangleRay, tmax: f32) -> Option<f32> {
-        match &self.prims[i as usize].shape {
-            Shape::Triangle(t) if t.mesh != shapes::NO_MESH => {
-                let (d, b1, b2) = t.intersect_prepared(tri, tmax)?;
-                self.covers(t, Vec2::new(b1, b2)).then_some(d)
-            }
-            s => s.intersect_prepared(ray, tri, tmax),
-        }
+    /// [`Geometry::closest_bounded`] over the triangles alone, counting the work of the walk into `cost`: what
+    /// the ray casting benchmark reports beside its rates.
+    pub fn closest_triangle_counted(&self, ray: &Ray, tmax: f32, cost: &mut RayCost) -> Option<(u32, f32)> {
+        self.trees().triangles.closest_hit_counted(&TriangleRay::new(ray), ray.d, tmax, cost)
+    }
+
+    /// [`Geometry::occluded`] over the triangles alone, counting the work of the walk into `cost`.
+    pub fn triangle_occluded_counted(&self, ray: &Ray, tmax: f32, cost: &mut RayCost) -> bool {
+        self.trees().triangles.any_hit_counted(&TriangleRay::new(ray), ray.d, tmax, cost)
     }
 
     /// The texture coordinates of point `p` on bounded primitive `prim`: a mesh triangle's UVs interpolated at
@@ -238,9 +312,10 @@ impl Geometry {
         (0..3).fold(Vec2::ZERO, |acc, k| acc + w[k] * Vec2::from_array(m.uvs[ix[k] as usize]))
     }
 
-    /// Whether mesh face `tri` is present at barycentrics `b`: it has no cut-out, no UVs, or its mask covers the
-    /// UVs interpolated there.
-    fn covers(&self, tri: &shapes::Triangle, b: Vec2) -> bool {
+    /// Whether primitive `i` is present at barycentrics `b`: it is not a mesh face, or its mesh has no cut-out
+    /// or no UVs, or its mask covers the UVs interpolated there.
+    fn covers(&self, i: u32, b: Vec2) -> bool {
+        let Some(Shape::Triangle(tri)) = self.prims.get(i as usize).map(|p| p.shape) else { return true };
         let Some(m) = self.meshes.get(tri.mesh as usize) else { return true };
         let (Some(mask), Some(ix)) =
             (m.mask.and_then(|k| self.masks.get(k as usize)), m.uv_indices.get(tri.face as usize))
@@ -257,13 +332,18 @@ impl Geometry {
         if self.planes.iter().any(|pl| pl.plane.intersect(ray, tmax).is_some()) {
             return true;
         }
+        let trees = self.trees();
         let tri = TriangleRay::new(ray);
-        if self.masks.is_empty() {
-            return self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| {
+        let boxes = RayBox::new(ray.o, ray.d);
+        let blocked = if self.masks.is_empty() {
+            trees.triangles.any_prepared(&tri, &boxes, tmax, |_, _, _| true, &mut ())
+        } else {
+            trees.triangles.any_prepared(&tri, &boxes, tmax, |i, b1, b2| self.covers(i, Vec2::new(b1, b2)), &mut ())
+        };
+        blocked
+            || trees.others.any_prepared(&boxes, tmax, |i, tmax| {
                 self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax).is_some()
-            });
-        }
-        self.bvh.any_hit(ray.o, ray.d, tmax, |i, tmax| self.masked_hit(i, ray, &tri, tmax).is_some())
+            })
     }
 
     fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Hit {
