@@ -1,16 +1,15 @@
 //! The commands of the command line: `render`, `compare` and `reference`, each from its parsed
 //! arguments ([`crate::cli`]) to its output files and the lines it prints.
 
+pub use super::setup::runtime;
+use super::setup::{fits_in_memory, open_cache, render_scene, serve_live, shape_job, stop_live, write_output};
 use crate::cli::overrides::{self, Setting};
-use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved};
+use crate::cli::{Cli, Command, CompareArgs, IntegratorChoice, ReferenceArgs, RenderArgs, Resolved};
 use crate::farm::{self, FarmError};
-use crate::fleet::interrupt::Interrupts;
 use crate::fleet::{self, session::Greeting};
 use crate::job::delivery::{self, MapDelivery};
-use crate::job::prepared_cache::PreparedCache;
-use crate::job::{Job, Partial, partial_path, prepare_job};
+use crate::job::{Partial, partial_path, prepare_job};
 use crate::measure;
-use crate::out::live::{self, Board, LiveServer};
 use crate::out::report::{Summary, print_workers, sig};
 use anyhow::{Context, Result, bail};
 use photon_core::image_io::{Format, Image};
@@ -21,7 +20,6 @@ use photon_core::prepare::Prepared;
 use photon_core::prepare::gltf::direct::load_scene;
 use photon_core::scene::Scene;
 use std::path::Path;
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Runs a parsed command line.
@@ -45,23 +43,21 @@ pub fn init_logging() {
         .init();
 }
 
-/// The async runtime of the farm: two threads are plenty for the network; rendering runs on rayon.
-pub fn runtime() -> Result<tokio::runtime::Runtime> {
-    tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .context("starting the async runtime")
-}
-
 fn render(args: RenderArgs) -> Result<()> {
     Format::from_path(&args.output)?;
     if args.rows_per_strip == Some(0) {
         bail!("--rows-per-strip must be at least 1");
     }
+    let auto = match args.integrator {
+        Some(choice) => choice == IntegratorChoice::Auto,
+        None => super::auto::scene_asks_auto(&args.scene),
+    };
+    if auto {
+        return super::auto::render(args);
+    }
     let Resolved { spec, token, tls_ca, policy } = args.farm.resolve()?;
     let t0 = Instant::now();
-    let mut scene = render_scene(&args)?;
+    let mut scene = render_scene(&args, false)?;
     let bound = bound(&args, &mut scene, t0)?;
     fits_in_memory(&scene, args.rows_per_strip, bound.is_some())?;
     let resume = args.resume.as_deref().map(Partial::read).transpose()?;
@@ -143,25 +139,6 @@ fn render(args: RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// Shapes a prepared job for how it renders: whole-image blocks of passes or samples, in rounds, when `bounded`
-/// by time or error; a swarm when the photon maps pass among `peers` (with the farm's TLS authority).
-fn shape_job(job: &mut Job, bounded: bool, peers: bool, tls_ca: &Option<Vec<u8>>) {
-    if bounded {
-        job.passes = Some(crate::farm::bounded::MAX_PASSES);
-    }
-    if peers {
-        job.swarm = Some(std::sync::Arc::new(crate::fleet::swarm::Swarm::new(tls_ca.clone())));
-    }
-}
-
-/// The prepared-blob cache of `render`, unless `--no-cache` or no folder for it.
-fn open_cache(args: &RenderArgs) -> Result<Option<PreparedCache>> {
-    Ok(match (args.no_cache, args.cache_dir.clone().or_else(PreparedCache::default_dir)) {
-        (false, Some(dir)) => Some(PreparedCache::open(dir, args.cache_mib << 20)?),
-        _ => None,
-    })
-}
-
 /// The render's checkpoints (`--checkpoint-every`), into the output's partial file; none with
 /// `--no-checkpoint` or for a render `bounded` by time or error. Warns when that file exists and is not the one
 /// resumed from: the first checkpoint replaces it.
@@ -177,48 +154,6 @@ fn checkpoint(args: &RenderArgs, bounded: bool) -> Option<farm::Checkpoint> {
         );
     }
     Some(farm::Checkpoint { path, every: args.checkpoint_every })
-}
-
-/// Writes the finished image, and removes the output's partial file when this render wrote checkpoints there
-/// or was resumed from it; the seconds it took.
-fn write_output(args: &RenderArgs, image: &Image, exposure: f32, checkpointed: bool) -> Result<f64> {
-    let t = Instant::now();
-    image.write(&args.output, exposure)?;
-    let partial = partial_path(&args.output);
-    if checkpointed || args.resume.as_deref() == Some(partial.as_path()) {
-        let _ = std::fs::remove_file(&partial);
-    }
-    Ok(t.elapsed().as_secs_f64())
-}
-
-/// Serves the live page on `addr` (`render --serve`), warning when anyone who reaches it may look.
-fn serve_live(
-    rt: &tokio::runtime::Runtime,
-    addr: std::net::SocketAddr,
-    exposure: f32,
-    token: Option<&str>,
-) -> Result<(Arc<Board>, LiveServer)> {
-    let board = Arc::new(Board::new(exposure));
-    let server = rt.block_on(live::serve(addr, board.clone(), token))?;
-    eprintln!("live page: http://{}/", server.addr());
-    if !server.addr().ip().is_loopback() && token.is_none() {
-        eprintln!(
-            "warning: the live page is served on {} without a farm token: anyone who can reach it sees the \
-             image and the workers (give --token-file to require one)",
-            server.addr()
-        );
-    }
-    Ok((board, server))
-}
-
-/// Stops the live page once the render is over; with `--serve-after`, first serves its final state until a
-/// signal.
-async fn stop_live(server: LiveServer, serve_after: bool, interrupts: &mut Interrupts) {
-    if serve_after {
-        eprintln!("live page: the render is over; serving its final state at http://{}/ until Ctrl-C", server.addr());
-        crate::fleet::interrupt::interrupted(Some(interrupts)).await;
-    }
-    server.stop().await;
 }
 
 /// The workers as the photon-map delivery model sees them: their threads, this machine's threads, and the link
@@ -256,26 +191,6 @@ async fn model_farm(
     (farm, greetings)
 }
 
-/// Refuses a job whose image, photon maps and strips would not fit this machine's memory, before any of it is
-/// allocated; the error names the setting and what would fit. The strips count as rendered here, by the
-/// in-process workers of a render without hosts (the most a render allocates on this machine).
-fn fits_in_memory(scene: &Scene, rows_per_strip: Option<u32>, bounded: bool) -> Result<()> {
-    let Some(budget) = photon_core::prepare::budget::machine_memory() else { return Ok(()) };
-    let (c, r) = (&scene.camera, &scene.render);
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    // The methods that render in passes (progressive, vcm, bdpt, lt) render whole-image pass blocks;
-    // `--rows-per-strip` is then passes per block. So does a render bounded by time or error, in blocks of samples.
-    let rows = if bounded || r.integrator.renders_passes() {
-        c.height
-    } else {
-        rows_per_strip.unwrap_or_else(|| crate::farm::scheduler::rows_per_strip_for(c.height, 1))
-    };
-    let estimate = photon_core::prepare::budget::MemoryEstimate::job(c.width, c.height, rows, r, threads);
-    tracing::info!(bytes = estimate.total(), budget, "memory estimate");
-    estimate.check(budget, c.width, c.height, r).context("the job does not fit this machine's memory")?;
-    Ok(())
-}
-
 /// The bound of `--time` and `--target-error`, if either is given, with the scene set up for it: its samples per
 /// pixel (or passes, for progressive, vcm, bdpt and lt) become the most a bounded render takes, the range its
 /// blocks are numbered in.
@@ -311,11 +226,6 @@ fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<cra
         // live page, whether or not a target stops them.
         estimate: r.integrator.error_falls_with_units(),
     }))
-}
-
-/// The scene of `render`: the file, its `--set` pairs, then the flags that override settings as more pairs.
-fn render_scene(args: &RenderArgs) -> Result<Scene> {
-    Ok(load_scene(&args.scene, &overrides::pairs(&args.set, &args.settings()?))?)
 }
 
 /// A render stopped by a signal: the error `main` reports, with the exit status it ends with.
@@ -491,7 +401,7 @@ mod tests {
             let render = ["photon-coordinator", "render", "s.toml", "--integrator", method, "--time", "10s"];
             let Command::Render(args) = Cli::try_parse_from(render).unwrap().command else { unreachable!("a render") };
             let mut scene = Scene::parse(text, Path::new("s.toml")).unwrap();
-            scene.render.integrator = args.integrator.unwrap();
+            scene.render.integrator = args.integrator.and_then(IntegratorChoice::method).unwrap();
             let (spp, passes) = (scene.render.spp, scene.render.photons.passes);
             let b = bound(&args, &mut scene, Instant::now()).unwrap().unwrap();
             let in_passes = scene.render.integrator.renders_passes();

@@ -2,8 +2,10 @@
 //! their values, with one error type, [`ValueError`]), the flags that override scene settings ([`overrides`])
 //! and the commands that run them ([`commands`]).
 
+mod auto;
 pub mod commands;
 pub mod overrides;
+mod setup;
 
 use crate::fleet;
 use anyhow::{Context, Result, bail};
@@ -47,9 +49,11 @@ pub(crate) struct RenderArgs {
     /// only), `photon-map` (the global map seen directly), `final-gather` (Jensen's two passes), `progressive`
     /// (progressive photon mapping, in passes), `vcm` (vertex connection and merging: bidirectional paths and
     /// photon merges weighted by MIS, in passes), `bdpt` (bidirectional path tracing: vcm without merging) or
-    /// `lt` (light tracing: light subpaths connected to the camera only).
+    /// `lt` (light tracing: light subpaths connected to the camera only). `auto` chooses among path,
+    /// progressive (at two radii), vcm and bdpt by a short pilot of each, for the budget of `--time` or
+    /// `--target-error` (docs/USAGE.md).
     #[arg(long)]
-    pub(crate) integrator: Option<Method>,
+    pub(crate) integrator: Option<IntegratorChoice>,
     /// Seed (overrides the scene's `render.seed`).
     #[arg(long)]
     pub(crate) seed: Option<u64>,
@@ -128,6 +132,35 @@ pub(crate) struct RenderArgs {
     pub(crate) serve_after: bool,
 }
 
+/// `--integrator`: a method, or `auto` (chosen by a pilot of each candidate: [`crate::auto`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegratorChoice {
+    /// This method.
+    Method(Method),
+    /// The method that a pilot predicts best for the budget.
+    Auto,
+}
+
+impl IntegratorChoice {
+    /// The method, unless `auto`.
+    pub fn method(self) -> Option<Method> {
+        match self {
+            Self::Method(m) => Some(m),
+            Self::Auto => None,
+        }
+    }
+}
+
+impl std::str::FromStr for IntegratorChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "auto" => Ok(Self::Auto),
+            _ => s.parse().map(Self::Method).map_err(|e: photon_core::method::UnknownMethod| format!("{e}, or auto")),
+        }
+    }
+}
+
 impl RenderArgs {
     /// The settings the flags override, checked as `--set` would not (a count of 0 names the flag).
     pub(crate) fn settings(&self) -> Result<Vec<Setting>> {
@@ -140,7 +173,7 @@ impl RenderArgs {
         let settings = [
             self.size.map(|(w, h)| Setting::Size(w, h)),
             spp.map(Setting::Spp),
-            self.integrator.map(Setting::Integrator),
+            self.integrator.and_then(IntegratorChoice::method).map(Setting::Integrator),
             self.seed.map(Setting::Seed),
             self.exposure.map(Setting::Exposure),
             photons.map(Setting::Photons),

@@ -127,6 +127,45 @@ pub struct BoundedReport {
     pub reason: StopReason,
     /// The last estimate of the relative MSE, when one was made.
     pub rel_mse_estimate: Option<f64>,
+    /// The last estimate's parts: variance and squared bias.
+    pub error_parts: Option<ErrorParts>,
+    /// Seconds the completed rounds took, each from its start to its last block (the first from the first
+    /// worker's readiness): the render's own time, without connections and uploads.
+    pub round_seconds: f64,
+    /// Seconds and passes of the last completed round: the rate once the workers are warm.
+    pub last_round: Option<(f64, u32)>,
+    /// Passes a second of one worker, over the accepted blocks: their passes over the seconds their workers
+    /// spent rendering them (without the rounds' round trips, which a short round is mostly made of).
+    pub block_rate: Option<f64>,
+}
+
+/// An estimate of the relative MSE in its two parts (see the module documentation), each averaged over the
+/// image's pixel values: `rel_mse = variance + max(bias2, 0)`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorParts {
+    /// The relative variance of the image's mean.
+    pub variance: f64,
+    /// The relative squared bias (the bias model's, for progressive photon mapping and vcm; 0 for the
+    /// unbiased methods). It may be negative: the model subtracts the noise it expects, and the sum is
+    /// clamped only in [`ErrorParts::rel_mse`].
+    pub bias2: f64,
+}
+
+impl ErrorParts {
+    /// The estimated relative MSE.
+    pub fn rel_mse(self) -> f64 {
+        self.variance + self.bias2.max(0.0)
+    }
+}
+
+/// Where a bounded render stopped: its completed rounds and the sums of its image
+/// ([`crate::out::report::Outcome::continuation`]; [`crate::farm::Options::continuation`] goes on from it).
+#[derive(Clone, Debug)]
+pub struct Continuation {
+    /// The completed rounds, with their rate and error estimate.
+    pub rounds: Rounds,
+    /// The image's fixed-point sums (those of the completed rounds).
+    pub image: SumAccumulator,
 }
 
 /// The next round: `passes` passes in blocks of `per_block`.
@@ -141,13 +180,18 @@ pub struct RoundPlan {
 /// The rounds of one bounded render: when each ended, how fast it went, the sums of the round in flight (they
 /// join the image only when the round is complete, so the image holds whole rounds), the error estimate, and
 /// why the render stopped.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct Rounds {
     bound: Bound,
     started: Instant,
     round_started: Instant,
     /// Passes at the end of each completed round.
     ends: Vec<u32>,
+    /// The plan of each completed round: how its passes were cut into blocks (a continued render cuts its
+    /// scheduler's first units the same way, so that each block keeps its index and its half).
+    plans: Vec<RoundPlan>,
+    /// The round in flight.
+    current_plan: RoundPlan,
     /// Passes of the round in flight.
     current: u32,
     /// Seconds and passes of the last completed round.
@@ -155,7 +199,11 @@ pub struct Rounds {
     /// Fixed-point sums of the blocks of the round in flight.
     sums: SumAccumulator,
     estimate: ErrorEstimate,
-    last_estimate: Option<f64>,
+    last_estimate: Option<ErrorParts>,
+    /// Seconds of the completed rounds.
+    round_seconds: f64,
+    /// Seconds the workers spent rendering the accepted blocks, and their passes.
+    block_time: (f64, u64),
     stopped: Option<StopReason>,
 }
 
@@ -169,11 +217,15 @@ impl Rounds {
             started: now,
             round_started: now,
             ends: Vec::new(),
+            plans: Vec::new(),
+            current_plan: RoundPlan { passes: 0, per_block: 1 },
             current: 0,
             last: None,
             sums: SumAccumulator::new(values, 1),
             estimate,
             last_estimate: None,
+            round_seconds: 0.0,
+            block_time: (0.0, 0),
             stopped: None,
         }
     }
@@ -186,8 +238,34 @@ impl Rounds {
         let cap = if self.bound.estimates() && self.bound.passes.is_some() { cap.div_ceil(2) } else { cap };
         let passes = (2 * blocks_per_round(workers)).min(cap);
         self.current = passes;
+        self.current_plan = RoundPlan { passes, per_block: 2 };
         self.round_started = Instant::now();
-        RoundPlan { passes, per_block: 2 }
+        self.current_plan
+    }
+
+    /// The error estimate of the completed rounds.
+    pub fn estimate(&self) -> &ErrorEstimate {
+        &self.estimate
+    }
+
+    /// The completed rounds' plans, in order.
+    pub fn plans(&self) -> &[RoundPlan] {
+        &self.plans
+    }
+
+    /// Goes on with these rounds under a new `bound` (a later deadline or another target; the pilot of
+    /// `--integrator auto` continued by the render it chose): the completed rounds, their rate and the error
+    /// estimate are kept, and the round in flight, if any, is forgotten.
+    pub fn continue_with(&mut self, bound: Bound) {
+        self.bound = Bound { bias_alpha: self.bound.bias_alpha, ..bound };
+        self.stopped = None;
+        self.current = 0;
+        self.sums = SumAccumulator::new(self.sums.sums().len(), 1);
+    }
+
+    /// Whether the render has stopped ([`Rounds::stop`], or [`Rounds::next`] found no round to start).
+    pub fn is_stopped(&self) -> bool {
+        self.stopped.is_some()
     }
 
     /// Times the round in flight from now: the first round's clock starts when the first worker is ready, so
@@ -228,16 +306,27 @@ impl Rounds {
         self.estimate.add_block(index, passes, sums);
     }
 
+    /// Counts an accepted block of `passes` passes that its worker rendered in `seconds`.
+    pub fn add_block_time(&mut self, passes: u32, seconds: f64) {
+        if seconds.is_finite() && seconds > 0.0 {
+            self.block_time.0 += seconds;
+            self.block_time.1 += u64::from(passes);
+        }
+    }
+
     /// Ends the round in flight: its sums join `image`. Returns the new error estimate when the render
     /// estimates one.
     pub fn end_round(&mut self, image: &mut SumAccumulator) -> Option<f64> {
         image.absorb(&mut self.sums);
         let passes = self.passes() + self.current;
         self.ends.push(passes);
-        self.last = Some((self.round_started.elapsed().as_secs_f64(), self.current));
+        self.plans.push(self.current_plan);
+        let seconds = self.round_started.elapsed().as_secs_f64();
+        self.round_seconds += seconds;
+        self.last = Some((seconds, self.current));
         self.estimate.end_round();
-        self.last_estimate = if self.bound.estimates() { self.estimate.rel_mse() } else { None };
-        self.last_estimate
+        self.last_estimate = if self.bound.estimates() { self.estimate.parts() } else { None };
+        self.last_estimate.map(ErrorParts::rel_mse)
     }
 
     /// Records why the render stops (the round in flight, if any, is dropped with its sums).
@@ -251,7 +340,11 @@ impl Rounds {
             passes: self.passes(),
             rounds: self.completed(),
             reason: self.stopped.unwrap_or(StopReason::Cap),
-            rel_mse_estimate: self.last_estimate,
+            rel_mse_estimate: self.last_estimate.map(ErrorParts::rel_mse),
+            error_parts: self.last_estimate,
+            round_seconds: self.round_seconds,
+            last_round: self.last,
+            block_rate: (self.block_time.0 > 0.0).then(|| self.block_time.1 as f64 / self.block_time.0),
         }
     }
 
@@ -263,7 +356,7 @@ impl Rounds {
             elapsed: now.duration_since(self.started),
             remaining: self.bound.deadline.map(|d| d.saturating_duration_since(now)),
             last: self.last,
-            estimate: self.last_estimate,
+            estimate: self.last_estimate.map(ErrorParts::rel_mse),
             target: self.bound.target_error,
             estimating: self.bound.estimates(),
             cap: self.bound.passes.unwrap_or(MAX_PASSES).min(MAX_PASSES),
@@ -271,6 +364,7 @@ impl Rounds {
         })
         .inspect_err(|&reason| self.stop(reason))?;
         self.current = plan.passes;
+        self.current_plan = plan;
         self.round_started = now;
         Ok(plan)
     }
@@ -346,7 +440,7 @@ fn plan_round(s: &RoundState) -> Result<RoundPlan, StopReason> {
 
 /// The error estimate of a bounded render (see the module documentation): two interleaved half-images by block
 /// parity, and, for the bias of progressive photon mapping, the sums of each round.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default)]
 pub struct ErrorEstimate {
     /// Radiance sums (W·sr⁻¹·m⁻² × passes) of the even and odd blocks, and their passes. Empty when the render
     /// estimates no error.
@@ -409,6 +503,30 @@ impl ErrorEstimate {
     /// The estimated relative MSE of the mean of every block added so far, or `None` before both halves have a
     /// block (and, with the bias model, before two rounds are complete).
     pub fn rel_mse(&self) -> Option<f64> {
+        self.parts().map(ErrorParts::rel_mse)
+    }
+
+    /// [`ErrorEstimate::rel_mse`] in its parts, variance and squared bias.
+    pub fn parts(&self) -> Option<ErrorParts> {
+        self.parts_with(None)
+    }
+
+    /// [`ErrorEstimate::parts`] relative to `reference` (pixel values, as the image's), an estimate of the true
+    /// image better than this render's own halves, in place of the smaller half's mean: after a few passes that
+    /// mean is often near 0 where the image is noisy, which inflates the relative error of the noisiest methods
+    /// most (`--integrator auto` pools its candidates' pilots into one: [`crate::auto`]).
+    pub fn parts_against(&self, reference: &[f32]) -> Option<ErrorParts> {
+        (reference.len() == self.halves[0].len()).then(|| self.parts_with(Some(reference))).flatten()
+    }
+
+    /// The two half-images: their radiance sums per pixel value (W·sr⁻¹·m⁻² × passes) and their passes; `None`
+    /// before both halves have a block.
+    pub fn halves(&self) -> Option<([&[f64]; 2], [u64; 2])> {
+        let [na, nb] = self.half_passes;
+        (na > 0 && nb > 0).then(|| ([self.halves[0].as_slice(), self.halves[1].as_slice()], self.half_passes))
+    }
+
+    fn parts_with(&self, reference: Option<&[f32]>) -> Option<ErrorParts> {
         let [na, nb] = self.half_passes.map(|n| n as f64);
         if na == 0.0 || nb == 0.0 {
             return None;
@@ -428,7 +546,10 @@ impl ErrorEstimate {
             let sigma2 = d * d / (1.0 / na + 1.0 / nb);
             // The reference's value is unknown: the smaller half's mean stands in for it, which a rare large
             // sample (a firefly) in one half does not inflate (the full mean would, hiding that very error).
-            let low = (a / na).min(b / nb).max(0.0);
+            let low = match reference {
+                Some(r) => f64::from(r[i]).max(0.0),
+                None => (a / na).min(b / nb).max(0.0),
+            };
             let den = low * low + photon_core::metrics::EPSILON;
             var_sum += sigma2 / n / den;
             if let Some(split) = &split {
@@ -438,7 +559,7 @@ impl ErrorEstimate {
             }
         }
         let values = self.halves[0].len().max(1) as f64;
-        Some((var_sum + bias_sum.max(0.0)) / values)
+        Some(ErrorParts { variance: var_sum / values, bias2: bias_sum / values })
     }
 
     /// The split of the completed rounds at the round end nearest half the passes, with the bias model's gain

@@ -71,6 +71,10 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
         if let Some(end) = end {
             break end;
         }
+        // A bounded render's next round was queued by `end`: hand it out now, not at the next event or tick
+        // (up to 250 ms later, which was most of a short round's time).
+        farm.fill_slots(t0.elapsed());
+        effects.perform(farm.take_actions());
         tokio::select! {
             Some(event) = rx.recv() => effects.deliver(&mut farm, event, t0.elapsed()),
             _ = tick.tick() => {

@@ -167,7 +167,44 @@ impl<'a> Farm<'a> {
         if let Some(p) = &options.resume {
             farm.resume(p)?;
         }
+        if let (Some(c), Some(bound)) = (&options.continuation, &options.bound) {
+            farm.continue_from(c, bound.clone(), &options.policy, workers.len())?;
+        }
         Ok(farm)
+    }
+
+    /// Goes on from an earlier bounded render of this job ([`Options::continuation`]) under `bound`: its
+    /// rounds' blocks are cut again as they were (each keeps its index, and with it its half of the error
+    /// estimate) and marked done, its sums are the image, and the next round is queued after them.
+    fn continue_from(
+        &mut self,
+        c: &super::bounded::Continuation,
+        bound: crate::farm::bounded::Bound,
+        policy: &super::scheduler::Policy,
+        workers: usize,
+    ) -> Result<(), FarmError> {
+        let mut rounds = c.rounds.clone();
+        let plans = rounds.plans().to_vec();
+        let fits = c.image.sums().len() == self.image.sums().len() && self.job.passes.is_some();
+        let Some((first, rest)) = plans.split_first().filter(|_| fits) else {
+            return Err(FarmError::Resume("the render to continue has no completed round of this job".into()));
+        };
+        let mut sched = Scheduler::with_policy(first.passes, first.per_block, policy.clone());
+        for plan in rest {
+            sched.extend(plan.passes, plan.per_block);
+        }
+        for id in 0..sched.strip_count() as u32 {
+            sched.mark_done(super::scheduler::StripId(id));
+        }
+        rounds.continue_with(bound);
+        if let Ok(plan) = rounds.next(workers) {
+            sched.extend(plan.passes, plan.per_block);
+        }
+        self.rows_per_strip = first.per_block;
+        self.sched = sched;
+        self.image = c.image.clone();
+        self.rounds = Some(rounds);
+        Ok(())
     }
 
     /// The actions decided since the last call, in order.
@@ -178,9 +215,10 @@ impl<'a> Farm<'a> {
     /// How the render ended at `now`, once it has.
     pub(super) fn end(&mut self, now: Duration) -> Option<Result<(), Stop>> {
         if self.sched.is_done() {
-            return match self.rounds.is_some() {
-                true => self.next_round(now),
-                false => Some(Ok(())),
+            // A continued render may find no round to start (its deadline passed during the pilots).
+            return match self.rounds.as_ref().map(Rounds::is_stopped) {
+                Some(false) => self.next_round(now),
+                Some(true) | None => Some(Ok(())),
             };
         }
         if let Some((strip, failure)) = self.sched.fatal() {
@@ -354,6 +392,9 @@ impl<'a> Farm<'a> {
         }
         if let Completion::Accepted { cancel } = completion {
             tracing::info!(worker = %m.addr.name, %strip, "accepted");
+            if let (Some(rounds), Some(range)) = (self.rounds.as_mut(), self.sched.strip_rows(strip)) {
+                rounds.add_block_time(range.len() as u32, summary.render_seconds);
+            }
             self.accept(strip, sums, summary.rays, cancel);
         }
     }

@@ -42,6 +42,9 @@ pub struct Options {
     /// at any moment (SIGKILL, the OOM killer, a power cut) can be resumed from its last checkpoint; `None`: no
     /// checkpoints (a render bounded by time or error, which cannot be resumed).
     pub checkpoint: Option<Checkpoint>,
+    /// A bounded render that goes on from where an earlier one of the same job stopped (`--integrator auto`
+    /// continues its pilot): its rounds and image are kept, under [`Options::bound`].
+    pub continuation: Option<crate::farm::bounded::Continuation>,
 }
 
 /// Checkpoints of a render's finished units ([`Options::checkpoint`]).
@@ -72,6 +75,7 @@ impl Default for Options {
             live: None,
             greetings: Vec::new(),
             checkpoint: None,
+            continuation: None,
         }
     }
 }

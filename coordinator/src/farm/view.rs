@@ -27,7 +27,19 @@ impl Farm<'_> {
                     None => self.image.image(),
                 };
                 let (rays, photon_paths, resumed) = (self.rays, self.photon_paths, self.resumed);
-                return Ok(Outcome { pixels, rays, photon_paths, workers, ship_s, render_s, resumed, bounded });
+                let image = self.image;
+                let continuation = self.rounds.map(|rounds| Box::new(super::bounded::Continuation { rounds, image }));
+                return Ok(Outcome {
+                    pixels,
+                    rays,
+                    photon_paths,
+                    workers,
+                    ship_s,
+                    render_s,
+                    resumed,
+                    bounded,
+                    continuation,
+                });
             }
             Err(stop) => stop,
         };

@@ -72,6 +72,9 @@ pub struct LiveStatus {
     /// The relative MSE the render estimated of itself over time (a render bounded by time or error,
     /// [`crate::farm::bounded`], after each round; [`Board::push_error`]); empty otherwise.
     pub error: Vec<ErrorPoint>,
+    /// `--integrator auto`: each candidate's pilot, its prediction and the choice ([`Board::set_candidates`]);
+    /// empty otherwise.
+    pub candidates: Vec<LiveCandidate>,
     /// The render is over (finished, failed or interrupted): nothing more will change.
     pub finished: bool,
     /// Image width in pixels.
@@ -82,6 +85,26 @@ pub struct LiveStatus {
     pub version: u64,
     /// Units finished in the image `/preview.png` shows (set by the board; the page shows it under the image).
     pub preview_done: usize,
+}
+
+/// One candidate of `--integrator auto` ([`crate::auto`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LiveCandidate {
+    /// The method, with its radius when scaled (`progressive (radius ×0.5)`).
+    pub method: String,
+    /// Passes (or samples per pixel) its pilot rendered.
+    pub passes: u32,
+    /// Seconds its pilot's rounds took.
+    pub pilot_s: f64,
+    /// The relative MSE its pilot estimated of itself; `None` when it gave no estimate.
+    pub rel_mse: Option<f64>,
+    /// The relative MSE predicted at the deadline (`--time`), or the seconds predicted to the target
+    /// (`--target-error`); `None` without a prediction.
+    pub predicted: Option<f64>,
+    /// Whether `predicted` is in seconds (to the target) rather than a relative MSE.
+    pub predicted_seconds: bool,
+    /// The one chosen.
+    pub chosen: bool,
 }
 
 /// One strip or pass block.
@@ -217,6 +240,7 @@ impl Board {
             return;
         }
         status.error = std::mem::take(&mut inner.status.error);
+        status.candidates = std::mem::take(&mut inner.status.candidates);
         status.version = inner.status.version + 1;
         if let Some(p) = preview {
             inner.image = Some(Arc::new((p, status.done)));
@@ -230,6 +254,13 @@ impl Board {
     /// Adds a point to the error-against-time list (seconds since the start, relative MSE).
     pub fn push_error(&self, elapsed_s: f64, rel_mse: f64) {
         self.lock().status.error.push(ErrorPoint { elapsed_s, rel_mse });
+    }
+
+    /// Sets the candidates of `--integrator auto` and its choice, kept by every later publish.
+    pub fn set_candidates(&self, candidates: Vec<LiveCandidate>) {
+        let mut inner = self.lock();
+        inner.status.candidates = candidates;
+        inner.status.version += 1;
     }
 
     /// Marks the render over: the estimate of the time left becomes 0 (when every unit is done) and nothing
@@ -573,6 +604,29 @@ mod tests {
             (json["width"].as_u64(), json["height"].as_u64(), json["version"].as_u64()),
             (Some(4), Some(8), Some(1))
         );
+    }
+
+    #[tokio::test]
+    async fn the_auto_choice_survives_later_publishes_and_reaches_the_json() {
+        let (board, _) = farm_state();
+        let candidate = |method: &str, chosen| LiveCandidate {
+            method: method.into(),
+            passes: 4,
+            pilot_s: 0.4,
+            rel_mse: Some(0.1),
+            predicted: Some(0.01),
+            predicted_seconds: false,
+            chosen,
+        };
+        board.set_candidates(vec![candidate("path", false), candidate("bdpt", true)]);
+        board.publish(LiveStatus { units: "pass blocks".into(), ..LiveStatus::default() }, None);
+        let (_, _, body) = get(router(Arc::new(board), None), "/api/status", None).await;
+        let json: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(json["units"], "pass blocks");
+        let cands = json["candidates"].as_array().unwrap();
+        assert_eq!(cands.len(), 2);
+        assert_eq!((cands[1]["method"].as_str(), cands[1]["chosen"].as_bool()), (Some("bdpt"), Some(true)));
+        assert_eq!(cands[0]["predicted"].as_f64(), Some(0.01));
     }
 
     #[tokio::test]

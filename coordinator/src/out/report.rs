@@ -81,6 +81,9 @@ pub struct Outcome {
     pub resumed: usize,
     /// What a render bounded by time or error did: passes (samples) in the image, rounds, why it stopped.
     pub bounded: Option<BoundedReport>,
+    /// A bounded render's rounds and image sums, for a render that goes on from them
+    /// ([`crate::farm::Options::continuation`]).
+    pub continuation: Option<Box<crate::farm::bounded::Continuation>>,
 }
 
 /// The per-worker table.

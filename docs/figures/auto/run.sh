@@ -1,0 +1,42 @@
+#!/usr/bin/env bash
+# `--integrator auto` against each single method at its default settings, at equal wall time (all cores of this
+# machine): the relative MSE of each image against the scene's own reference, and what auto chose. Rows go to
+# docs/figures/auto/results.csv (or CSV); the images and each render's output stay in WORK (a temporary folder
+# unless set), where a second run reuses the references. About 12 minutes a room on 2 cores at the default times,
+# 7 for fog and volume-caustic, plus 1 to 5 minutes for each reference.
+#
+#   bash docs/figures/auto/run.sh                                # the rooms and the two media scenes, 5 20 40 s
+#   TIMES="20" SCENES="cornell-spheres" bash docs/figures/auto/run.sh
+set -euo pipefail
+cd "$(dirname "$0")/../../.."
+bin=${PHOTON_BIN:-target/release}
+[ -x "$bin/photon-coordinator" ] || cargo build --release -p photon-coordinator -p photon-worker
+pc=$bin/photon-coordinator
+work=${WORK:-$(mktemp -d)}
+out=${CSV:-docs/figures/auto/results.csv}
+echo "scene,seconds,method,chosen,passes,rel_mse" > "$out"
+for name in ${SCENES:-cornell-boxes cornell-spheres fog volume-caustic}; do
+  # The scene, its size, its reference's method and budget (the path tracer where every path can be found from
+  # the camera; progressive photon mapping for the volume caustic, which only photon methods render), and the
+  # single methods compared (vcm and bdpt fall back to the path tracer in a scene with media).
+  case $name in
+    cornell-boxes|cornell-spheres) scene=scenes/rooms/$name.toml size=256x256 ref=(--spp 4096) methods="path progressive vcm bdpt" ;;
+    fog) scene=scenes/fog.toml size=96x96 ref=(--spp 4096) methods="path progressive" ;;
+    volume-caustic) scene=scenes/volume-caustic.toml size=96x72 ref=(--passes 1024) methods="progressive" ;;
+    *) echo "unknown scene $name" >&2; exit 2 ;;
+  esac
+  reference=$work/$name-ref.exr
+  [ -f "$reference" ] || "$pc" reference "$scene" -o "$reference" --size "$size" "${ref[@]}" --seed 7 >/dev/null
+  for t in ${TIMES:-5 20 40}; do
+    for m in auto $methods; do
+      img=$work/$name-$m-$t.exr
+      "$pc" render "$scene" -o "$img" --size "$size" --integrator "$m" --time "${t}s" -q --no-cache > "$work/$name-$m-$t.txt"
+      summary=$(tail -n 1 "$work/$name-$m-$t.txt")
+      # The method that rendered (auto's choice) and its passes or samples, from the summary line.
+      chosen=$(sed -E 's/.*stopped [^,]*, ([a-z-]+), .*/\1/' <<<"$summary")
+      passes=$(sed -E 's/^[^,]*, ([0-9]+) (spp|passes).*/\1/' <<<"$summary")
+      e=$("$pc" compare "$img" "$reference" | grep -o 'rel_mse=[^ ]*' | cut -d= -f2)
+      echo "$name,$t,$m,$chosen,$passes,$e" | tee -a "$out"
+    done
+  done
+done
