@@ -26,9 +26,7 @@ pub struct ReferenceChoice {
 /// that a camera path can only complete by hitting the point, which has probability zero, so the path tracer
 /// converges to an image without the caustic. Progressive photon mapping is consistent for those paths.
 pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
-    let point = prep.lights.lights.iter().any(Light::is_delta);
-    let specular = prep.materials.iter().any(Material::has_specular);
-    if point && specular {
+    if has_delta_caustics(prep) {
         ReferenceChoice {
             integrator: Method::Progressive,
             reason: "the scene has a point, spot or directional light and a mirror or glass material: the caustics it casts are paths \
@@ -37,6 +35,7 @@ pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
                 .into(),
         }
     } else {
+        let point = prep.lights.lights.iter().any(Light::is_delta);
         let why = if point { "no mirror or glass material" } else { "no point, spot or directional light" };
         ReferenceChoice {
             integrator: Method::Path,
@@ -45,6 +44,13 @@ pub fn choose_reference(prep: &Prepared) -> ReferenceChoice {
             ),
         }
     }
+}
+
+/// Whether the scene has a point, spot or directional light and a mirror or glass material: the caustics that
+/// light casts through them are paths a camera path completes only by hitting the point, with probability zero
+/// (so the path tracer never renders them).
+pub fn has_delta_caustics(prep: &Prepared) -> bool {
+    prep.lights.lights.iter().any(Light::is_delta) && prep.materials.iter().any(Material::has_specular)
 }
 
 /// An image and the wall time it took.

@@ -2,10 +2,12 @@
 //! the workers, a prediction of each one's error at the end of the budget, and the winner's render, which goes
 //! on from its pilot ([`crate::auto`] has the model).
 
-use super::setup::{fits_in_memory, open_cache, render_scene, runtime, serve_live, shape_job, stop_live, write_output};
+use super::setup::{
+    bound, fits_in_memory, open_cache, render_scene, runtime, serve_live, shape_job, stop_live, write_output,
+};
 use crate::auto::{self, Candidate, Goal, Judged, Pilot, SceneFacts};
-use crate::cli::RenderArgs;
-use crate::farm::bounded::{Bound, MAX_PASSES, StopReason};
+use crate::cli::{IntegratorChoice, RenderArgs};
+use crate::farm::bounded::{Bound, StopReason};
 use crate::farm::{self, bounded::Continuation};
 use crate::fleet;
 use crate::job::delivery::{self, MapDelivery};
@@ -13,18 +15,25 @@ use crate::job::{Job, prepare_job};
 use crate::out::live::LiveCandidate;
 use crate::out::report::{Summary, print_workers};
 use anyhow::{Context, Result, bail};
-use photon_core::image_io::Image;
-use photon_core::light::Light;
-use photon_core::material::Material;
+use photon_core::image_io::{Format, Image};
 use photon_core::method::RadiusSetting;
 use photon_core::prepare::Prepared;
 use photon_core::scene::Scene;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
+/// Whether `render` is asked to choose its method: `--integrator auto`, or, with no `--integrator`, the scene
+/// file's `integrator = "auto"`.
+pub(super) fn asked(args: &RenderArgs) -> bool {
+    match args.integrator {
+        Some(choice) => choice == IntegratorChoice::Auto,
+        None => scene_asks_auto(&args.scene),
+    }
+}
+
 /// Whether the scene file at `path` asks for `integrator = "auto"` in its `[render]` table. A file that cannot
 /// be read or parsed says no: loading it reports why.
-pub(super) fn scene_asks_auto(path: &Path) -> bool {
+fn scene_asks_auto(path: &Path) -> bool {
     let is_toml = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     let Some(text) = is_toml.then(|| std::fs::read_to_string(path).ok()).flatten() else { return false };
     let Ok(table) = text.parse::<toml::Table>() else { return false };
@@ -36,6 +45,8 @@ struct Piloted {
     judged: Judged,
     scene: Scene,
     job: Job,
+    /// The render this pilot begins, bounded by the command's time or error.
+    bound: Bound,
     continuation: Option<Box<Continuation>>,
     /// The pilot's image (pixel values, 3 per pixel).
     pixels: Vec<f32>,
@@ -89,6 +100,7 @@ fn bias_from_the_radius_pair(piloted: &mut [Piloted], pooled: &[f32]) {
 
 /// Refuses what `auto` cannot choose for; the goal's kind (the seconds are set once the pilots are done).
 fn check(args: &RenderArgs) -> Result<()> {
+    Format::from_path(&args.output)?;
     if args.spp.is_some() || args.passes.is_some() {
         bail!(
             "--integrator auto chooses the method for a budget of time or error: --spp and --passes fix the \
@@ -110,13 +122,14 @@ fn check(args: &RenderArgs) -> Result<()> {
 /// The scene's facts that decide the candidates, and its gather radius.
 fn facts(scene: &Scene, path: &Path) -> Result<(SceneFacts, f32)> {
     let prep = Prepared::new(scene, path).context("preparing the scene for the pilots")?;
-    let delta = prep.lights.lights.iter().any(Light::is_delta);
-    let specular = prep.materials.iter().any(Material::has_specular);
-    Ok((SceneFacts { media: prep.media.is_some(), delta_caustics: delta && specular }, prep.photon_radius()))
+    let facts = SceneFacts { media: prep.media.is_some(), delta_caustics: crate::measure::has_delta_caustics(&prep) };
+    Ok((facts, prep.photon_radius()))
 }
 
-/// What every pilot shares: the command, the scene, its radius, the time a pilot may take, the farm.
+/// What every pilot shares: the command and when it started, the scene, its radius, the time a pilot may take,
+/// the farm.
 struct PilotRun<'a> {
+    t0: Instant,
     args: &'a RenderArgs,
     scene: &'a Scene,
     radius: f32,
@@ -134,9 +147,8 @@ struct Choice {
     goal: Goal,
 }
 
-/// Pilots every candidate, predicts each one's error for the budget left after them (`t0` is the command's
-/// start) and picks the winner.
-async fn choose(run: &PilotRun<'_>, candidates: &[Candidate], t0: Instant) -> Result<Choice> {
+/// Pilots every candidate, predicts each one's error for the budget left after them and picks the winner.
+async fn choose(run: &PilotRun<'_>, candidates: &[Candidate]) -> Result<Choice> {
     let mut piloted = Vec::new();
     for &candidate in candidates {
         piloted.push(run_pilot(run, candidate).await?);
@@ -144,7 +156,7 @@ async fn choose(run: &PilotRun<'_>, candidates: &[Candidate], t0: Instant) -> Re
     let pooled = against_the_pooled_pilots(&mut piloted);
     bias_from_the_radius_pair(&mut piloted, &pooled);
     let goal = match (run.args.time, run.args.target_error) {
-        (Some(t), _) => Goal::Time((t0 + t).saturating_duration_since(Instant::now()).as_secs_f64()),
+        (Some(t), _) => Goal::Time((run.t0 + t).saturating_duration_since(Instant::now()).as_secs_f64()),
         (None, e) => Goal::Error(e.unwrap_or(f64::INFINITY)),
     };
     for p in &mut piloted {
@@ -191,24 +203,25 @@ pub(super) fn render(args: RenderArgs) -> Result<()> {
         None => auto::TARGET_PILOT_S,
     });
     let addrs = fleet.addrs.clone();
-    let run =
-        PilotRun { args: &args, scene: &scene, radius, pilot, options: &options, addrs: &addrs, cache: cache.as_ref() };
+    let run = PilotRun {
+        t0,
+        args: &args,
+        scene: &scene,
+        radius,
+        pilot,
+        options: &options,
+        addrs: &addrs,
+        cache: cache.as_ref(),
+    };
     let result = rt.block_on(async {
-        let choice = choose(&run, &candidates, t0).await?;
+        let mut choice = choose(&run, &candidates).await?;
         if let Some((board, _)) = &live {
             board.set_candidates(live_candidates(&choice.judged, choice.win, choice.goal));
         }
-        let chosen = &choice.chosen;
-        let bound = Bound {
-            deadline: args.time.map(|t| t0 + t),
-            target_error: args.target_error,
-            bias_alpha: chosen.judged.candidate.method.bias_alpha(chosen.scene.render.photons.alpha),
-            passes: None,
-            estimate: true,
-        };
+        let chosen = &mut choice.chosen;
         let options = farm::Options {
-            bound: Some(bound),
-            continuation: chosen.continuation.as_deref().cloned(),
+            bound: Some(chosen.bound.clone()),
+            continuation: chosen.continuation.take().map(|c| *c),
             progress: !args.quiet,
             live: live.as_ref().map(|(board, _)| board.clone()),
             ..options.clone()
@@ -268,30 +281,26 @@ fn finish(
 /// [`auto::PILOT_PASSES`] passes in two rounds that estimate their error, stopped at `run.pilot` from now if it
 /// is slower.
 async fn run_pilot(run: &PilotRun<'_>, candidate: Candidate) -> Result<Piloted> {
-    let PilotRun { args, scene, radius, pilot, options, addrs, cache } = *run;
+    let PilotRun { t0, args, scene, radius, pilot, options, addrs, cache } = *run;
     let mut scene = scene.clone();
     let r = &mut scene.render;
     r.integrator = candidate.method;
     if candidate.radius_scale != 1.0 {
         r.photons.radius = Some(radius * candidate.radius_scale);
     }
-    if r.integrator.renders_passes() {
-        r.photons.passes = MAX_PASSES;
-    } else {
-        r.spp = MAX_PASSES;
-    }
+    // The candidate's own render, of which the pilot is the first rounds.
+    let bound = bound(args, &mut scene, t0)?.context("auto has a budget (checked)")?;
     fits_in_memory(&scene, None, true)?;
     let decide = |prep: &Prepared| delivery::choose(MapDelivery::Trace, prep, &delivery::Farm::default());
     let (mut job, _, _) = prepare_job(&scene, &args.scene, cache, decide)?;
     shape_job(&mut job, true, false, &options.tls_ca);
-    let bound = Bound {
+    let pilot_bound = Bound {
         deadline: Some(Instant::now() + pilot),
         target_error: None,
-        bias_alpha: candidate.method.bias_alpha(scene.render.photons.alpha),
         passes: Some(auto::PILOT_PASSES),
-        estimate: true,
+        ..bound.clone()
     };
-    let options = farm::Options { bound: Some(bound), ..options.clone() };
+    let options = farm::Options { bound: Some(pilot_bound), ..options.clone() };
     let outcome =
         farm::render(&job, addrs, options).await.with_context(|| format!("the pilot of {}", candidate.label()))?;
     let report = outcome.bounded.context("a pilot renders in rounds")?;
@@ -306,7 +315,7 @@ async fn run_pilot(run: &PilotRun<'_>, candidate: Candidate) -> Result<Piloted> 
         _ => None,
     };
     let judged = Judged { candidate, pilot, score: f64::INFINITY };
-    Ok(Piloted { judged, scene, job, continuation: outcome.continuation, pixels: outcome.pixels })
+    Ok(Piloted { judged, scene, job, bound, continuation: outcome.continuation, pixels: outcome.pixels })
 }
 
 /// The candidates as the live page shows them.

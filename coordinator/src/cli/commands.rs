@@ -2,9 +2,9 @@
 //! arguments ([`crate::cli`]) to its output files and the lines it prints.
 
 pub use super::setup::runtime;
-use super::setup::{fits_in_memory, open_cache, render_scene, serve_live, shape_job, stop_live, write_output};
+use super::setup::{bound, fits_in_memory, open_cache, render_scene, serve_live, shape_job, stop_live, write_output};
 use crate::cli::overrides::{self, Setting};
-use crate::cli::{Cli, Command, CompareArgs, IntegratorChoice, ReferenceArgs, RenderArgs, Resolved};
+use crate::cli::{Cli, Command, CompareArgs, ReferenceArgs, RenderArgs, Resolved};
 use crate::farm::{self, FarmError};
 use crate::fleet::{self, session::Greeting};
 use crate::job::delivery::{self, MapDelivery};
@@ -18,13 +18,13 @@ use photon_core::metrics::{self, Metrics};
 use photon_core::prepare::Prepared;
 // A scene file, or a glTF rendered directly.
 use photon_core::prepare::gltf::direct::load_scene;
-use photon_core::scene::Scene;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> Result<()> {
     match cli.command {
+        Command::Render(args) if super::auto::asked(&args) => super::auto::render(args),
         Command::Render(args) => render(args),
         Command::Compare(args) => compare(args),
         Command::Reference(args) => reference(args),
@@ -47,13 +47,6 @@ fn render(args: RenderArgs) -> Result<()> {
     Format::from_path(&args.output)?;
     if args.rows_per_strip == Some(0) {
         bail!("--rows-per-strip must be at least 1");
-    }
-    let auto = match args.integrator {
-        Some(choice) => choice == IntegratorChoice::Auto,
-        None => super::auto::scene_asks_auto(&args.scene),
-    };
-    if auto {
-        return super::auto::render(args);
     }
     let Resolved { spec, token, tls_ca, policy } = args.farm.resolve()?;
     let t0 = Instant::now();
@@ -189,43 +182,6 @@ async fn model_farm(
     let farm =
         delivery::Farm { worker_threads, coordinator_threads: here, link_bytes_per_s, shared_link, link_measured };
     (farm, greetings)
-}
-
-/// The bound of `--time` and `--target-error`, if either is given, with the scene set up for it: its samples per
-/// pixel (or passes, for progressive, vcm, bdpt and lt) become the most a bounded render takes, the range its
-/// blocks are numbered in.
-/// Refuses `--target-error` for the methods whose error no number of samples lowers, and `--spp`/`--passes`.
-fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::farm::bounded::Bound>> {
-    if args.time.is_none() && args.target_error.is_none() {
-        return Ok(None);
-    }
-    let r = &mut scene.render;
-    let in_passes = r.integrator.renders_passes();
-    if args.spp.is_some() || args.passes.is_some() {
-        bail!("--spp and --passes fix the samples; --time and --target-error choose them: give one or the other");
-    }
-    if args.target_error.is_some() && !r.integrator.error_falls_with_units() {
-        bail!(
-            "--target-error needs an error that more samples lower; `{}` keeps the bias of its photon maps \
-             (their count is fixed before the render): use `progressive`, `vcm` or `path`, or bound it with --time",
-            r.integrator
-        );
-    }
-    if in_passes {
-        r.photons.passes = crate::farm::bounded::MAX_PASSES;
-    } else {
-        r.spp = crate::farm::bounded::MAX_PASSES;
-    }
-    Ok(Some(crate::farm::bounded::Bound {
-        deadline: args.time.map(|t| t0 + t),
-        target_error: args.target_error,
-        // The gather (merge) radius of progressive photon mapping and vcm shrinks with α; bdpt and lt are unbiased.
-        bias_alpha: r.integrator.bias_alpha(r.photons.alpha),
-        passes: None,
-        // The methods whose error more samples lower estimate it after every round, for the summary and the
-        // live page, whether or not a target stops them.
-        estimate: r.integrator.error_falls_with_units(),
-    }))
 }
 
 /// A render stopped by a signal: the error `main` reports, with the exit status it ends with.
@@ -382,6 +338,8 @@ fn print_metrics(m: &Metrics) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cli::IntegratorChoice;
+    use photon_core::scene::Scene;
 
     #[test]
     fn the_resume_command_replaces_an_earlier_resume_and_quotes_for_the_shell() {

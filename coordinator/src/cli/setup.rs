@@ -8,7 +8,7 @@ use crate::job::Job;
 use crate::job::partial_path;
 use crate::job::prepared_cache::PreparedCache;
 use crate::out::live::{self, Board, LiveServer};
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use photon_core::image_io::Image;
 use photon_core::method::Method;
 use photon_core::prepare::gltf::direct::load_scene;
@@ -115,4 +115,41 @@ pub(crate) fn render_scene(args: &RenderArgs, auto: bool) -> Result<Scene> {
         settings.push(Setting::Integrator(Method::Path));
     }
     Ok(load_scene(&args.scene, &overrides::pairs(&args.set, &settings))?)
+}
+
+/// The bound of `--time` and `--target-error`, if either is given, with the scene set up for it: its samples per
+/// pixel (or passes, for progressive, vcm, bdpt and lt) become the most a bounded render takes, the range its
+/// blocks are numbered in.
+/// Refuses `--target-error` for the methods whose error no number of samples lowers, and `--spp`/`--passes`.
+pub(crate) fn bound(args: &RenderArgs, scene: &mut Scene, t0: Instant) -> Result<Option<crate::farm::bounded::Bound>> {
+    if args.time.is_none() && args.target_error.is_none() {
+        return Ok(None);
+    }
+    let r = &mut scene.render;
+    let in_passes = r.integrator.renders_passes();
+    if args.spp.is_some() || args.passes.is_some() {
+        bail!("--spp and --passes fix the samples; --time and --target-error choose them: give one or the other");
+    }
+    if args.target_error.is_some() && !r.integrator.error_falls_with_units() {
+        bail!(
+            "--target-error needs an error that more samples lower; `{}` keeps the bias of its photon maps \
+             (their count is fixed before the render): use `progressive`, `vcm` or `path`, or bound it with --time",
+            r.integrator
+        );
+    }
+    if in_passes {
+        r.photons.passes = crate::farm::bounded::MAX_PASSES;
+    } else {
+        r.spp = crate::farm::bounded::MAX_PASSES;
+    }
+    Ok(Some(crate::farm::bounded::Bound {
+        deadline: args.time.map(|t| t0 + t),
+        target_error: args.target_error,
+        // The gather (merge) radius of progressive photon mapping and vcm shrinks with α; bdpt and lt are unbiased.
+        bias_alpha: r.integrator.bias_alpha(r.photons.alpha),
+        passes: None,
+        // The methods whose error more samples lower estimate it after every round, for the summary and the
+        // live page, whether or not a target stops them.
+        estimate: r.integrator.error_falls_with_units(),
+    }))
 }

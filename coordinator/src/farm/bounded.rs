@@ -132,8 +132,6 @@ pub struct BoundedReport {
     /// Seconds the completed rounds took, each from its start to its last block (the first from the first
     /// worker's readiness): the render's own time, without connections and uploads.
     pub round_seconds: f64,
-    /// Seconds and passes of the last completed round: the rate once the workers are warm.
-    pub last_round: Option<(f64, u32)>,
     /// Passes a second of one worker, over the accepted blocks: their passes over the seconds their workers
     /// spent rendering them (without the rounds' round trips, which a short round is mostly made of).
     pub block_rate: Option<f64>,
@@ -185,15 +183,13 @@ pub struct Rounds {
     bound: Bound,
     started: Instant,
     round_started: Instant,
-    /// Passes at the end of each completed round.
-    ends: Vec<u32>,
     /// The plan of each completed round: how its passes were cut into blocks (a continued render cuts its
     /// scheduler's first units the same way, so that each block keeps its index and its half).
     plans: Vec<RoundPlan>,
-    /// The round in flight.
-    current_plan: RoundPlan,
-    /// Passes of the round in flight.
-    current: u32,
+    /// Passes of the completed rounds.
+    done: u32,
+    /// The round in flight (0 passes when none).
+    current: RoundPlan,
     /// Seconds and passes of the last completed round.
     last: Option<(f64, u32)>,
     /// Fixed-point sums of the blocks of the round in flight.
@@ -216,10 +212,9 @@ impl Rounds {
             bound,
             started: now,
             round_started: now,
-            ends: Vec::new(),
             plans: Vec::new(),
-            current_plan: RoundPlan { passes: 0, per_block: 1 },
-            current: 0,
+            done: 0,
+            current: NO_ROUND,
             last: None,
             sums: SumAccumulator::new(values, 1),
             estimate,
@@ -237,10 +232,9 @@ impl Rounds {
         // needs two.
         let cap = if self.bound.estimates() && self.bound.passes.is_some() { cap.div_ceil(2) } else { cap };
         let passes = (2 * blocks_per_round(workers)).min(cap);
-        self.current = passes;
-        self.current_plan = RoundPlan { passes, per_block: 2 };
+        self.current = RoundPlan { passes, per_block: 2 };
         self.round_started = Instant::now();
-        self.current_plan
+        self.current
     }
 
     /// The error estimate of the completed rounds.
@@ -259,7 +253,7 @@ impl Rounds {
     pub fn continue_with(&mut self, bound: Bound) {
         self.bound = Bound { bias_alpha: self.bound.bias_alpha, ..bound };
         self.stopped = None;
-        self.current = 0;
+        self.current = NO_ROUND;
         self.sums = SumAccumulator::new(self.sums.sums().len(), 1);
     }
 
@@ -291,12 +285,12 @@ impl Rounds {
 
     /// Passes of the completed rounds.
     pub fn passes(&self) -> u32 {
-        self.ends.last().copied().unwrap_or(0)
+        self.done
     }
 
     /// Rounds completed.
     pub fn completed(&self) -> u32 {
-        self.ends.len() as u32
+        self.plans.len() as u32
     }
 
     /// Adds an accepted block of the round in flight: its index (for the interleaved halves), its passes and
@@ -318,12 +312,11 @@ impl Rounds {
     /// estimates one.
     pub fn end_round(&mut self, image: &mut SumAccumulator) -> Option<f64> {
         image.absorb(&mut self.sums);
-        let passes = self.passes() + self.current;
-        self.ends.push(passes);
-        self.plans.push(self.current_plan);
+        self.done += self.current.passes;
+        self.plans.push(self.current);
         let seconds = self.round_started.elapsed().as_secs_f64();
         self.round_seconds += seconds;
-        self.last = Some((seconds, self.current));
+        self.last = Some((seconds, self.current.passes));
         self.estimate.end_round();
         self.last_estimate = if self.bound.estimates() { self.estimate.parts() } else { None };
         self.last_estimate.map(ErrorParts::rel_mse)
@@ -343,7 +336,6 @@ impl Rounds {
             rel_mse_estimate: self.last_estimate.map(ErrorParts::rel_mse),
             error_parts: self.last_estimate,
             round_seconds: self.round_seconds,
-            last_round: self.last,
             block_rate: (self.block_time.0 > 0.0).then(|| self.block_time.1 as f64 / self.block_time.0),
         }
     }
@@ -363,12 +355,14 @@ impl Rounds {
             workers,
         })
         .inspect_err(|&reason| self.stop(reason))?;
-        self.current = plan.passes;
-        self.current_plan = plan;
+        self.current = plan;
         self.round_started = now;
         Ok(plan)
     }
 }
+
+/// The plan of no round: before the first, and after a continued render forgot the round in flight.
+const NO_ROUND: RoundPlan = RoundPlan { passes: 0, per_block: 1 };
 
 /// Blocks in a round for `workers` workers: two each, and at least two (one per half of the error estimate).
 fn blocks_per_round(workers: usize) -> u32 {

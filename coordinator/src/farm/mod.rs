@@ -60,7 +60,11 @@ pub async fn render(job: &Job, workers: &[WorkerAddr], mut options: Options) -> 
     let t0 = Instant::now();
     let (tx, mut rx) = mpsc::unbounded_channel::<Event>();
     let mut interrupt = options.interrupt.take();
+    let continuation = options.continuation.take();
     let mut farm = Farm::new(job, workers, &options)?;
+    if let (Some(c), Some(bound)) = (continuation, &options.bound) {
+        farm.continue_from(c, bound.clone(), &options.policy, workers.len())?;
+    }
     let mut effects = Effects::new(job, workers, &options, tx, &farm);
     let sessions = start_sessions(job, workers, &options, &effects.tx);
     let mut checkpoints = partial::Checkpoints::new(options.checkpoint.take(), &farm);

@@ -167,25 +167,23 @@ impl<'a> Farm<'a> {
         if let Some(p) = &options.resume {
             farm.resume(p)?;
         }
-        if let (Some(c), Some(bound)) = (&options.continuation, &options.bound) {
-            farm.continue_from(c, bound.clone(), &options.policy, workers.len())?;
-        }
         Ok(farm)
     }
 
-    /// Goes on from an earlier bounded render of this job ([`Options::continuation`]) under `bound`: its
+    /// Goes on from an earlier bounded render of this job ([`Options::continuation`], taken out of the options by
+    /// `render`, so that its image is moved, not copied) under `bound`: its
     /// rounds' blocks are cut again as they were (each keeps its index, and with it its half of the error
     /// estimate) and marked done, its sums are the image, and the next round is queued after them.
-    fn continue_from(
+    pub(super) fn continue_from(
         &mut self,
-        c: &super::bounded::Continuation,
+        c: super::bounded::Continuation,
         bound: crate::farm::bounded::Bound,
         policy: &super::scheduler::Policy,
         workers: usize,
     ) -> Result<(), FarmError> {
-        let mut rounds = c.rounds.clone();
+        let super::bounded::Continuation { mut rounds, image } = c;
         let plans = rounds.plans().to_vec();
-        let fits = c.image.sums().len() == self.image.sums().len() && self.job.passes.is_some();
+        let fits = image.sums().len() == self.image.sums().len() && self.job.passes.is_some();
         let Some((first, rest)) = plans.split_first().filter(|_| fits) else {
             return Err(FarmError::Resume("the render to continue has no completed round of this job".into()));
         };
@@ -202,7 +200,7 @@ impl<'a> Farm<'a> {
         }
         self.rows_per_strip = first.per_block;
         self.sched = sched;
-        self.image = c.image.clone();
+        self.image = image;
         self.rounds = Some(rounds);
         Ok(())
     }
