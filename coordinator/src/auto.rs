@@ -18,21 +18,27 @@
 //! # The bias of a radius
 //! A pilot of a few passes cannot see the kernel bias by itself: its time split ([`crate::farm::bounded`])
 //! compares radii that hardly differ, and the estimate of its squared bias is noise. Progressive photon mapping
-//! is therefore piloted at two first radii, `r₀` and `r₀/2` ([`PROGRESSIVE_SCALES`]), with the same passes and
-//! seeds, and [`radius_pair_bias2`] estimates the bias from their difference, less their noise, value by value.
-//! Where the radiance is smooth the bias grows as `r²` (Hachisuka, Ogaki & Jensen 2008, §4.3); at edges, shadow
-//! boundaries and caustics it grows as `r`, and on the rooms those dominate (halving the radius cut
-//! progressive's error at 142 passes on the diffuse room from 1.28e-3 to 8.4e-4). So the model is `r`'s: the
-//! two images differ by half of `r₀`'s bias, the smaller radius has a quarter of its square, and the squared bias
-//! falls with the passes as the squared mean radius.
+//! is therefore piloted at two first radii, `r₀` and `r₀/2` ([`PROGRESSIVE_SCALES`]), with the
+//! same passes and seeds, and [`radius_pair_bias2`] estimates the bias from their difference, less their noise,
+//! value by value. Where the radiance is smooth the bias grows as `r²` (Hachisuka, Ogaki & Jensen 2008, §4.3);
+//! on the rooms the edges dominate (corners, shadows' borders, caustics' rims: halving the radius cut
+//! progressive's error at 142 passes on the diffuse room from 1.28e-3 to 8.4e-4). An edge biases the values
+//! within one radius of it, each by the jump times the share of the kernel across it ([`edge_share`]), so its
+//! squared bias summed over the image grows with the band's width, `r`, and after `N` passes it is the band
+//! of their radii ([`edge_band`]). The same model gives the ratio of `r₀`'s squared bias to the squared
+//! difference of the pair (about 4.3), and `r₀/2`'s squared bias is half of `r₀`'s. (The first model took the
+//! bias at every value to grow as `r`: a quarter for `r₀/2`, falling as the squared mean radius. On the
+//! diffuse room in 20 s it predicted progressive at `r₀/2` at 3.4e-4, against 7.4e-4 measured; this one
+//! predicts 5.5e-4, against 6.7e-4.)
 //!
 //! # The prediction
 //! Each candidate's error at the end of the budget is predicted from how its error falls with its units
 //! ([`predict`]): an unbiased method's variance as `1/N`; for progressive photon mapping and vcm, whose radius
 //! shrinks as `r_i² = r_0² Π (k + α)/(k + 1)` (Knaus & Zwicker 2011, eq. 15), the variance of the mean of `N`
-//! passes as `Σ r_i⁻² / N²` (each pass's density estimate has a variance `∝ 1/r_i²`) and the bias as the mean
-//! of `r_i` (see above), each scaled from the pilot's own estimate, at the pilot's rate ([`Pilot::rate`]). With `--time` the
-//! candidate of the least predicted error wins; with `--target-error`, the one predicted to reach it soonest.
+//! passes as `Σ r_i⁻² / N²` (each pass's density estimate has a variance `∝ 1/r_i²`) and the squared bias as
+//! the edges' band (see above), each scaled from the pilot's own estimate, at the pilot's rate
+//! ([`Pilot::rate`]). With `--time` the candidate of the least predicted error wins; with `--target-error`, the
+//! one predicted to reach it soonest.
 //!
 //! # Going on
 //! The winner goes on from its pilot ([`crate::farm::Options::continuation`]): its pilot's blocks stay in the
@@ -146,13 +152,59 @@ pub fn predict(method: Method, alpha: f32, pilot: &Pilot, passes: u32) -> f64 {
         Bias::None | Bias::Fixed => pilot.parts.variance * k / n,
         Bias::Shrinking => {
             let (pk, pn) = (pilot.passes.max(1), passes.max(1));
-            // Variance of the mean: Σ r_i⁻² / N²; bias: the mean of r_i (edges, where the bias grows as r).
+            // Variance of the mean: Σ r_i⁻² / N²; squared bias: the edges' band ([`edge_band`]).
             let var = |p: u32, n: f64| radius_power_sum(alpha, 0..p, -2.0) / (n * n);
-            let bias = |p: u32, n: f64| radius_power_sum(alpha, 0..p, 1.0) / n;
-            let b = bias(pn, n) / bias(pk, k);
-            pilot.parts.variance * var(pn, n) / var(pk, k) + pilot.parts.bias2.max(0.0) * b * b
+            let bias2 = edge_band(alpha, pn, edge_share) / edge_band(alpha, pk, edge_share);
+            pilot.parts.variance * var(pn, n) / var(pk, k) + pilot.parts.bias2.max(0.0) * bias2
         }
     }
+}
+
+/// The share of an Epanechnikov kernel's weight (the default, `render.photons.kernel`) that lies beyond a
+/// straight line `u` radii from its centre: `(8/3π) ∫ᵤ¹ (1 − x²)^{3/2} dx`, ½ at the centre and 0 from one
+/// radius on. Where the radiance jumps at an edge (a corner, a shadow's border, a caustic's rim) by `J`, a
+/// density estimate `u` radii from it is off by `J` times this share.
+pub fn edge_share(u: f64) -> f64 {
+    if u >= 1.0 {
+        return 0.0;
+    }
+    let u = u.max(0.0);
+    0.5 - (u * (5.0 - 2.0 * u * u) * (1.0 - u * u).sqrt() + 3.0 * u.asin()) / (3.0 * std::f64::consts::PI)
+}
+
+/// Quadrature points across an edge's band.
+const BAND_POINTS: usize = 128;
+/// Passes sampled at most along a radius sequence in [`edge_band`] (more are strided: the radius changes
+/// slowly late in the sequence).
+const BAND_PASSES: u32 = 2048;
+
+/// `∫₀¹ ((1/N) Σᵢ w(x/ρᵢ))² dx` over the first `passes` passes of the radius sequence of `alpha`, with `ρᵢ` the
+/// ratio of pass `i`'s radius to the first: the squared error, summed across one unit of an edge's length
+/// (in first radii), of the mean of `N` passes whose estimate at distance `x` from the edge is off by `w(x/rᵢ)`
+/// (times the jump). With `w` = [`edge_share`] it is the squared bias an edge leaves in the image, up to a
+/// factor (the jump squared, the edges' length over the image's area, the first radius) that cancels in every
+/// ratio of it: between pass counts, and between the bias and the difference of two radii.
+pub fn edge_band(alpha: f32, passes: u32, w: impl Fn(f64) -> f64) -> f64 {
+    let n = passes.max(1);
+    let stride = n.div_ceil(BAND_PASSES).max(1);
+    let mut sums = [0.0f64; BAND_POINTS];
+    let (mut ratio2, mut weight) = (1.0f64, 0.0f64);
+    for i in 0..n {
+        if i > 0 {
+            ratio2 *= (f64::from(i - 1) + f64::from(alpha)) / f64::from(i);
+        }
+        if i % stride != 0 {
+            continue;
+        }
+        let w_i = f64::from(stride.min(n - i));
+        let rho = ratio2.sqrt();
+        for (j, s) in sums.iter_mut().enumerate() {
+            let x = (j as f64 + 0.5) / BAND_POINTS as f64;
+            *s += w_i * w(x / rho);
+        }
+        weight += w_i;
+    }
+    sums.iter().map(|s| (s / weight) * (s / weight)).sum::<f64>() / BAND_POINTS as f64
 }
 
 /// The fewest passes in all at which `method` is predicted to reach `target`, or `None` beyond
@@ -187,15 +239,17 @@ pub fn passes_to_reach(method: Method, alpha: f32, pilot: &Pilot, target: f64) -
 /// ([`crate::farm::bounded::ErrorEstimate::halves`]).
 pub type Halves<'a> = ([&'a [f64]; 2], [u64; 2]);
 
-/// The relative squared bias of the larger radius's image (radius `r₀`), from its halves `large` and those of
-/// the image of the same passes and seeds at radius `r₀/2`, `small`, relative to `reference`, the best estimate
-/// of the image at hand (the pooled pilots): the difference image `L − S` and its noise come from the halves'
-/// differences (the two pilots trace the same photons, so their noises are correlated and do not add), and
-/// `4 · mean over values of (d² − var d) / (reference² + ε)`, at least 0, is `r₀`'s squared bias. With a bias
-/// that grows as `r` (edges, which dominate: see the module documentation) `d` is half of `L`'s bias, hence the
-/// 4; the smaller radius's squared bias is a quarter of it. Per value, not over tiles: at an edge the bias has
-/// opposite signs on its two sides, and an average over a tile cancels it. 0 when the halves do not match.
-pub fn radius_pair_bias2(large: Halves<'_>, small: Halves<'_>, reference: &[f32]) -> f64 {
+/// The relative squared bias of the larger radius's image (first radius `r₀`, `alpha` its sequence's α), from
+/// its halves `large` and those of the image of the same passes and seeds at first radius `r₀/2`, `small`,
+/// relative to `reference`, the best estimate of the image at hand (the pooled pilots): the difference image
+/// `L − S` and its noise come from the halves' differences (the two pilots trace the same photons, so their
+/// noises are correlated and do not add), and `mean over values of (d² − var d) / (reference² + ε)`, at least 0,
+/// is the difference's squared error. Under the edges' model ([`edge_band`]), an edge leaves `L` the squared
+/// error `edge_band(edge_share)` and the difference `edge_band(w)` with `w(u) = edge_share(u) − edge_share(2u)`;
+/// their ratio (about 4.3) turns the one into the other, and the smaller radius's band is half as wide, so its
+/// squared bias is half of `L`'s. Per value, not over tiles: at an edge the bias has opposite signs on its two
+/// sides, and an average over a tile cancels it. 0 when the halves do not match.
+pub fn radius_pair_bias2(large: Halves<'_>, small: Halves<'_>, reference: &[f32], alpha: f32) -> f64 {
     let n = reference.len();
     let ([la, lb], passes) = large;
     let ([sa, sb], small_passes) = small;
@@ -217,7 +271,9 @@ pub fn radius_pair_bias2(large: Halves<'_>, small: Halves<'_>, reference: &[f32]
             (d * d - var) / (r * r + photon_core::metrics::EPSILON)
         })
         .sum();
-    (4.0 * sum / n as f64).max(0.0)
+    let k = (passes[0] + passes[1]).min(u64::from(u32::MAX)) as u32;
+    let difference = edge_band(alpha, k, |u| edge_share(u) - edge_share(2.0 * u));
+    (edge_band(alpha, k, edge_share) / difference * sum / n as f64).max(0.0)
 }
 
 /// A candidate's pilot with what it predicts.
@@ -261,6 +317,7 @@ pub fn winner(judged: &[Judged]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use photon_core::render::radius::pass_radius2;
 
     fn pilot(passes: u32, seconds: f64, variance: f64, bias2: f64) -> Pilot {
         Pilot { passes, seconds, rate: f64::from(passes) / seconds, parts: ErrorParts { variance, bias2 } }
@@ -302,11 +359,12 @@ mod tests {
         let expected = 1e-2 * (100f64 / 10_000.0).powf(f64::from(alpha));
         assert!((v / expected - 1.0).abs() < 0.05, "{v} against {expected}");
         assert!(v > 1e-2 * 100.0 / 10_000.0);
-        // Squared bias alone (an edge's, growing as r) falls as the mean radius squared, N^(α − 1).
+        // Squared bias alone (edges') falls as their band narrows.
         let p = pilot(100, 1.0, 0.0, 1e-2);
         let b = predict(Method::Vcm, alpha, &p, 10_000);
-        let expected = 1e-2 * (10_000f64 / 100.0).powf(f64::from(alpha - 1.0));
-        assert!((b / expected - 1.0).abs() < 0.05, "{b} against {expected}");
+        let expected = 1e-2 * edge_band(alpha, 10_000, edge_share) / edge_band(alpha, 100, edge_share);
+        assert!((b / expected - 1.0).abs() < 1e-9, "{b} against {expected}");
+        assert!(b < 1e-2);
         // A negative squared bias (noise) adds nothing.
         assert_eq!(predict(Method::Progressive, alpha, &pilot(100, 1.0, 0.0, -1e-3), 400), 0.0);
         // Unreachable within MAX_PASSES.
@@ -314,25 +372,80 @@ mod tests {
     }
 
     #[test]
+    fn the_edge_share_is_the_kernel_weight_beyond_a_line() {
+        // Against a direct quadrature of the Epanechnikov weight 1 − ρ² over the unit disc beyond x = u.
+        let beyond = |u: f64| {
+            let m = 400;
+            let (mut inside, mut total) = (0.0, 0.0);
+            for i in 0..m {
+                for j in 0..m {
+                    let (x, y) = (-1.0 + (i as f64 + 0.5) * 2.0 / m as f64, -1.0 + (j as f64 + 0.5) * 2.0 / m as f64);
+                    let k = (1.0 - x * x - y * y).max(0.0);
+                    total += k;
+                    if x > u {
+                        inside += k;
+                    }
+                }
+            }
+            inside / total
+        };
+        for u in [0.0, 0.1, 0.3, 0.5, 0.8, 0.95] {
+            let (f, q) = (edge_share(u), beyond(u));
+            assert!((f - q).abs() < 2e-3, "u {u}: {f} against {q}");
+        }
+        assert_eq!(edge_share(1.0), 0.0);
+        assert_eq!(edge_share(3.0), 0.0);
+        assert!((edge_share(0.0) - 0.5).abs() < 1e-12);
+    }
+
+    #[test]
+    fn an_edges_band_narrows_with_the_radius() {
+        // A fixed radius (α = 1): the same band whatever the passes, ∫₀¹ f(x)² dx.
+        let direct = (0..100_000).map(|i| edge_share((i as f64 + 0.5) / 1e5).powi(2)).sum::<f64>() / 1e5;
+        for n in [1, 10, 1000] {
+            let b = edge_band(1.0, n, edge_share);
+            assert!((b / direct - 1.0).abs() < 1e-3, "{n} passes: {b} against {direct}");
+        }
+        // A shrinking radius: the squared bias falls with the passes, more slowly than the squared mean radius
+        // (the old model) and about as the mean radius (the band's width).
+        let alpha = 2.0 / 3.0;
+        let (b1, b2) = (edge_band(alpha, 100, edge_share), edge_band(alpha, 10_000, edge_share));
+        let mean_r = |n: u32| radius_power_sum(alpha, 0..n, 1.0) / f64::from(n);
+        let r = mean_r(10_000) / mean_r(100);
+        eprintln!("squared bias 100 → 10 000 passes: ×{:.4}; mean radius ×{r:.4}", b2 / b1);
+        assert!(b2 / b1 > r * r * 1.2 && b2 / b1 < r * 1.1, "{} against r {r}", b2 / b1);
+    }
+
+    #[test]
     fn two_radii_give_the_bias_of_each() {
-        // An edge: +0.08 on one side, −0.08 on the other at r₀, half that at r₀/2, around a true value of 1, in
-        // two halves of 2 passes each: the difference is 0.04 (half of r₀'s bias), so r₀'s squared bias is 0.0064
-        // relative to 1 + ε.
-        let reference = vec![1.0f32; 600];
-        let sums =
-            |bias: f32| (0..600).map(|i| 2.0 * f64::from(if i < 300 { 1.0 + bias } else { 1.0 - bias })).collect();
-        let (la, lb): (Vec<f64>, Vec<f64>) = (sums(0.08), sums(0.08));
-        let (sa, sb): (Vec<f64>, Vec<f64>) = (sums(0.04), sums(0.04));
-        let b = radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference);
-        let expected = 0.08f64 * 0.08 / (1.0 + photon_core::metrics::EPSILON);
-        assert!((b / expected - 1.0).abs() < 1e-4, "{b} against {expected}");
+        // An edge at x = 0 between radiance 1 and 1.2, seen by the density estimates of 4 passes (two halves of
+        // 2) at first radius 1 and ½: a value x away is off by the jump times the kernel's share across the
+        // edge, averaged over the passes' radii. The pair's estimate of the larger radius's squared bias is its
+        // true mean over the values.
+        let (alpha, jump, n) = (2.0f32 / 3.0, 0.2f64, 4000);
+        let x = |i: usize| -2.0 + 4.0 * (i as f64 + 0.5) / n as f64;
+        let truth = |i: usize| if x(i) < 0.0 { 1.0 } else { 1.0 + jump };
+        let radii: Vec<f64> = (0..4).map(|p| f64::from(pass_radius2(1.0, alpha, p)).sqrt()).collect();
+        let bias = |i: usize, r0: f64| {
+            let share = radii.iter().map(|r| edge_share(x(i).abs() / (r0 * r))).sum::<f64>() / 4.0;
+            if x(i) < 0.0 { jump * share } else { -jump * share }
+        };
+        let sums = |r0: f64| (0..n).map(|i| 2.0 * (truth(i) + bias(i, r0))).collect::<Vec<f64>>();
+        let reference: Vec<f32> = (0..n).map(|i| truth(i) as f32).collect();
+        let (la, lb, sa, sb) = (sums(1.0), sums(1.0), sums(0.5), sums(0.5));
+        let b = radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference, alpha);
+        let expected =
+            (0..n).map(|i| bias(i, 1.0).powi(2) / (truth(i).powi(2) + photon_core::metrics::EPSILON)).sum::<f64>()
+                / n as f64;
+        assert!((b / expected - 1.0).abs() < 0.03, "{b} against {expected}");
         // Noise in the difference (its halves disagree) is taken off; noise both share is not noise of the
         // difference; mismatched halves give none.
         let noisy: Vec<f64> = la.iter().enumerate().map(|(i, v)| v + if i % 2 == 0 { 0.1 } else { -0.1 }).collect();
-        assert!(radius_pair_bias2(([&noisy, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference) < b);
-        let shared = radius_pair_bias2(([&noisy, &lb], [2, 2]), ([&noisy, &sb], [2, 2]), &reference);
+        let with_noise = radius_pair_bias2(([&noisy, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference, alpha);
+        assert!((with_noise / b - 1.0).abs() < 0.1, "{with_noise} against {b}");
+        let shared = radius_pair_bias2(([&noisy, &lb], [2, 2]), ([&noisy, &sb], [2, 2]), &reference, alpha);
         assert!(shared < 0.05 * b, "{shared}");
-        assert_eq!(radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 4]), &reference), 0.0);
+        assert_eq!(radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 4]), &reference, alpha), 0.0);
     }
 
     #[test]

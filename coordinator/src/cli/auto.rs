@@ -88,9 +88,11 @@ fn bias_from_the_radius_pair(piloted: &mut [Piloted], pooled: &[f32]) {
     fn halves(p: &Piloted) -> Option<auto::Halves<'_>> {
         p.continuation.as_ref().and_then(|c| c.rounds.estimate().halves())
     }
+    let alpha = piloted[l].scene.render.photons.alpha;
     let (Some(hl), Some(hs)) = (halves(&piloted[l]), halves(&piloted[s])) else { return };
-    let b = auto::radius_pair_bias2(hl, hs, pooled);
-    let ratio = f64::from(small / large).powi(2);
+    let b = auto::radius_pair_bias2(hl, hs, pooled, alpha);
+    // The band of an edge narrows with the radius (see `auto::edge_band`).
+    let ratio = f64::from(small / large);
     for (i, b) in [(l, b), (s, b * ratio)] {
         if let Some(p) = piloted[i].judged.pilot.as_mut() {
             p.parts.bias2 = p.parts.bias2.max(b);

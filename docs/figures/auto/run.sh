@@ -7,6 +7,8 @@
 #
 #   bash docs/figures/auto/run.sh                                # the rooms and the two media scenes, 5 20 40 s
 #   TIMES="20" SCENES="cornell-spheres" bash docs/figures/auto/run.sh
+#   METHODS="" bash docs/figures/auto/run.sh                    # auto alone (the single methods' rows do not change
+#                                                                # with auto's model)
 set -euo pipefail
 cd "$(dirname "$0")/../../.."
 bin=${PHOTON_BIN:-target/release}
@@ -28,7 +30,7 @@ for name in ${SCENES:-cornell-boxes cornell-spheres fog volume-caustic}; do
   reference=$work/$name-ref.exr
   [ -f "$reference" ] || "$pc" reference "$scene" -o "$reference" --size "$size" "${ref[@]}" --seed 7 >/dev/null
   for t in ${TIMES:-5 20 40}; do
-    for m in auto $methods; do
+    for m in auto ${METHODS-$methods}; do
       img=$work/$name-$m-$t.exr
       "$pc" render "$scene" -o "$img" --size "$size" --integrator "$m" --time "${t}s" -q --no-cache > "$work/$name-$m-$t.txt"
       summary=$(tail -n 1 "$work/$name-$m-$t.txt")
