@@ -26,10 +26,10 @@
 //! within one radius of it, each by the jump times the share of the kernel across it ([`edge_share`]), so its
 //! squared bias summed over the image grows with the band's width, `r`, and after `N` passes it is the band
 //! of their radii ([`edge_band`]). The same model gives the ratio of `r₀`'s squared bias to the squared
-//! difference of the pair (about 4.3), and `r₀/2`'s squared bias is half of `r₀`'s. (The first model took the
-//! bias at every value to grow as `r`: a quarter for `r₀/2`, falling as the squared mean radius. On the
-//! diffuse room in 20 s it predicted progressive at `r₀/2` at 3.4e-4, against 7.4e-4 measured; this one
-//! predicts 5.5e-4, against 6.7e-4.)
+//! difference of the pair (4.7 for the 4 passes of a pilot at α = 2/3), and `r₀/2`'s squared bias is half of
+//! `r₀`'s. (The first model took the bias at every value to grow as `r`: a quarter for `r₀/2`, falling as the
+//! squared mean radius. On the diffuse room in 20 s it predicted progressive at `r₀/2` at 3.4e-4, against
+//! 7.4e-4 measured; this one predicts 5.5e-4, against 6.7e-4.)
 //!
 //! # The prediction
 //! Each candidate's error at the end of the budget is predicted from how its error falls with its units
@@ -246,8 +246,8 @@ pub type Halves<'a> = ([&'a [f64]; 2], [u64; 2]);
 /// noises are correlated and do not add), and `mean over values of (d² − var d) / (reference² + ε)`, at least 0,
 /// is the difference's squared error. Under the edges' model ([`edge_band`]), an edge leaves `L` the squared
 /// error `edge_band(edge_share)` and the difference `edge_band(w)` with `w(u) = edge_share(u) − edge_share(2u)`;
-/// their ratio (about 4.3) turns the one into the other, and the smaller radius's band is half as wide, so its
-/// squared bias is half of `L`'s. Per value, not over tiles: at an edge the bias has opposite signs on its two
+/// their ratio (4.7 for 4 passes at α = 2/3) turns the one into the other, and the smaller radius's band is
+/// half as wide, so its squared bias is half of `L`'s. Per value, not over tiles: at an edge the bias has opposite signs on its two
 /// sides, and an average over a tile cancels it. 0 when the halves do not match.
 pub fn radius_pair_bias2(large: Halves<'_>, small: Halves<'_>, reference: &[f32], alpha: f32) -> f64 {
     let n = reference.len();
