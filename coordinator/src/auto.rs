@@ -47,7 +47,7 @@
 
 use crate::farm::bounded::{ErrorParts, MAX_PASSES};
 use photon_core::method::{Bias, Method};
-use photon_core::render::radius::radius_power_sum;
+use photon_core::render::radius::{radius_power_sum, radius_ratios2};
 
 /// Passes (or samples per pixel) in a candidate's pilot: two rounds of one whole-image block each, the fewest
 /// that give an error estimate (each block holds an even number of passes, and each half of the estimate at
@@ -188,14 +188,8 @@ pub fn edge_band(alpha: f32, passes: u32, w: impl Fn(f64) -> f64) -> f64 {
     let n = passes.max(1);
     let stride = n.div_ceil(BAND_PASSES).max(1);
     let mut sums = [0.0f64; BAND_POINTS];
-    let (mut ratio2, mut weight) = (1.0f64, 0.0f64);
-    for i in 0..n {
-        if i > 0 {
-            ratio2 *= (f64::from(i - 1) + f64::from(alpha)) / f64::from(i);
-        }
-        if i % stride != 0 {
-            continue;
-        }
+    let mut weight = 0.0f64;
+    for (i, ratio2) in (0..n).zip(radius_ratios2(alpha)).step_by(stride as usize) {
         let w_i = f64::from(stride.min(n - i));
         let rho = ratio2.sqrt();
         for (j, s) in sums.iter_mut().enumerate() {
@@ -247,8 +241,8 @@ pub type Halves<'a> = ([&'a [f64]; 2], [u64; 2]);
 /// is the difference's squared error. Under the edges' model ([`edge_band`]), an edge leaves `L` the squared
 /// error `edge_band(edge_share)` and the difference `edge_band(w)` with `w(u) = edge_share(u) − edge_share(2u)`;
 /// their ratio (4.7 for 4 passes at α = 2/3) turns the one into the other, and the smaller radius's band is
-/// half as wide, so its squared bias is half of `L`'s. Per value, not over tiles: at an edge the bias has opposite signs on its two
-/// sides, and an average over a tile cancels it. 0 when the halves do not match.
+/// half as wide, so its squared bias is half of `L`'s. Per value, not over tiles: at an edge the bias has
+/// opposite signs on its two sides, and an average over a tile cancels it. 0 when the halves do not match.
 pub fn radius_pair_bias2(large: Halves<'_>, small: Halves<'_>, reference: &[f32], alpha: f32) -> f64 {
     let n = reference.len();
     let ([la, lb], passes) = large;

@@ -44,20 +44,21 @@ impl RadiusSequence {
     }
 }
 
+/// The passes' squared radii relative to the first one's, `(r_p / r_0)²` for `p = 0, 1, 2, …`: the sequence's
+/// product walked once, each value bit for bit the ratio [`pass_radius2`] multiplies `r0²` by.
+pub fn radius_ratios2(alpha: f32) -> impl Iterator<Item = f64> {
+    std::iter::successors(Some(RadiusSequence::at(1.0, alpha, 0)), |r| Some(r.next())).map(|r| r.ratio)
+}
+
 /// `Σ_{p ∈ passes} (r_p / r_0)^power`: the radii of passes `passes` relative to the first one's, raised to
 /// `power`. The kernel bias of a density estimate grows as `r²` where the density is smooth (Hachisuka, Ogaki &
 /// Jensen 2008, §4.3) and as `r` at its edges, so this sum is the factor by which the passes' mean bias differs
 /// from the first pass's. Walks the sequence once, `O(passes.end)`.
 pub fn radius_power_sum(alpha: f32, passes: Range<u32>, power: f64) -> f64 {
-    let mut r = RadiusSequence::at(1.0, alpha, 0);
-    let mut sum = 0.0;
-    while r.pass < passes.end {
-        if r.pass >= passes.start {
-            sum += r.ratio.powf(power / 2.0);
-        }
-        r = r.next();
-    }
-    sum
+    radius_ratios2(alpha)
+        .take(passes.end as usize)
+        .skip(passes.start as usize)
+        .fold(0.0, |sum, ratio| sum + ratio.powf(power / 2.0))
 }
 
 #[cfg(test)]
