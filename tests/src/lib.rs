@@ -88,6 +88,25 @@ pub fn scenes_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../scenes")
 }
 
+/// Runs `photon-coordinator render SCENE -q --no-cache ARGS…` in `dir` and waits for it.
+pub fn render_in(dir: &Path, scene: &Path, args: &[&str]) -> std::process::Output {
+    Command::new(coordinator())
+        .current_dir(dir)
+        .arg("render")
+        .arg(scene)
+        .args(["-q", "--no-cache"])
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| panic!("running {}: {e}", coordinator().display()))
+}
+
+/// The standard output of a run that succeeded; panics with both of its streams otherwise.
+pub fn success_stdout(out: &std::process::Output) -> String {
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    assert!(out.status.success(), "stdout: {stdout}\nstderr: {}", String::from_utf8_lossy(&out.stderr));
+    stdout
+}
+
 /// The worker binary, built with the coordinator.
 pub fn worker() -> PathBuf {
     coordinator().with_file_name(format!("photon-worker{}", std::env::consts::EXE_SUFFIX))

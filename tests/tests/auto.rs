@@ -3,28 +3,8 @@
 //! through two loopback workers; it refuses what has no budget to choose for.
 #![allow(clippy::unwrap_used)]
 
-use photon_tests::{coordinator, scenes_dir, temp_dir};
+use photon_tests::{render_in, scenes_dir, success_stdout, temp_dir};
 use std::path::Path;
-use std::process::{Command, Output};
-
-/// Runs `photon-coordinator render SCENE ARGS…` in `dir`.
-fn render(dir: &Path, scene: &Path, args: &[&str]) -> Output {
-    Command::new(coordinator())
-        .current_dir(dir)
-        .arg("render")
-        .arg(scene)
-        .args(["-q", "--no-cache"])
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-/// The standard output of a successful render.
-fn stdout(out: &Output) -> String {
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(out.status.success(), "stdout: {stdout}\nstderr: {}", String::from_utf8_lossy(&out.stderr));
-    stdout
-}
 
 /// The flags of the `auto: the same image:` line, up to its parenthesis.
 fn reproducing_flags(stdout: &str) -> Vec<String> {
@@ -39,11 +19,11 @@ fn reproducing_flags(stdout: &str) -> Vec<String> {
 fn auto_then_reproduce(dir: &Path, scene: &Path, extra: &[&str]) -> String {
     let base = ["--size", "32x32", "--set", "render.photons.pass_photons=5000"];
     let auto = [&base[..], &["-o", "auto.exr", "--integrator", "auto", "--time", "4s"], extra].concat();
-    let out = stdout(&render(dir, scene, &auto));
+    let out = success_stdout(&render_in(dir, scene, &auto));
     let flags = reproducing_flags(&out);
     let flags: Vec<&str> = flags.iter().map(String::as_str).collect();
     let fixed = [&base[..], &["-o", "fixed.exr"], &flags[..]].concat();
-    stdout(&render(dir, scene, &fixed));
+    success_stdout(&render_in(dir, scene, &fixed));
     let (a, b) = (std::fs::read(dir.join("auto.exr")).unwrap(), std::fs::read(dir.join("fixed.exr")).unwrap());
     assert!(a == b, "auto gave other bits than {flags:?}:\n{out}");
     out
@@ -84,7 +64,7 @@ fn auto_in_the_scene_file_and_its_refusals() {
     let scene = dir.join("auto.toml");
     std::fs::write(&scene, format!("{before}integrator = \"auto\"{after}")).unwrap();
     let fails = |scene: &Path, args: &[&str], expected: &str| {
-        let out = render(&dir, scene, &[&["-o", "x.png", "--size", "8x8"], args].concat());
+        let out = render_in(&dir, scene, &[&["-o", "x.png", "--size", "8x8"], args].concat());
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{args:?} succeeded");
         assert!(stderr.contains(expected), "{args:?}: {stderr}");
@@ -97,8 +77,12 @@ fn auto_in_the_scene_file_and_its_refusals() {
     fails(&cornell, &["--integrator", "automatic"], "or auto");
     fails(&scene, &[], "needs a budget to choose for");
     // The file's `auto` with a budget chooses; a method on the command line overrides it.
-    let out = stdout(&render(&dir, &scene, &["-o", "a.png", "--size", "8x8", "--time", "3s"]));
+    let out = success_stdout(&render_in(&dir, &scene, &["-o", "a.png", "--size", "8x8", "--time", "3s"]));
     assert!(out.contains("<- chosen"), "{out}");
-    let out = stdout(&render(&dir, &scene, &["-o", "b.png", "--size", "8x8", "--integrator", "path", "--spp", "2"]));
+    let out = success_stdout(&render_in(
+        &dir,
+        &scene,
+        &["-o", "b.png", "--size", "8x8", "--integrator", "path", "--spp", "2"],
+    ));
     assert!(!out.contains("auto:") && out.contains("2 spp"), "{out}");
 }

@@ -4,28 +4,19 @@
 //! references) within a factor 2 of its target; the flags refuse what they cannot honour.
 #![allow(clippy::unwrap_used)]
 
-use photon_tests::{coordinator, scenes_dir, temp_dir};
+use photon_tests::{coordinator, render_in, scenes_dir, success_stdout, temp_dir};
 use std::path::Path;
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
 
-/// Runs `photon-coordinator render SCENE ARGS…` in `dir`.
+/// Runs `photon-coordinator render SCENE ARGS…` in `dir`, the scene from the workspace's `scenes` folder.
 fn render(dir: &Path, scene: &str, args: &[&str]) -> Output {
-    Command::new(coordinator())
-        .current_dir(dir)
-        .arg("render")
-        .arg(scenes_dir().join(scene))
-        .args(["-q", "--no-cache"])
-        .args(args)
-        .output()
-        .unwrap()
+    render_in(dir, &scenes_dir().join(scene), args)
 }
 
 /// The summary line of a successful render.
 fn summary(out: &Output) -> String {
-    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
-    assert!(out.status.success(), "stdout: {stdout}\nstderr: {}", String::from_utf8_lossy(&out.stderr));
-    stdout.lines().last().unwrap_or_default().to_owned()
+    success_stdout(out).lines().last().unwrap_or_default().to_owned()
 }
 
 /// The number before `word` in `line` (e.g. `448 spp` → 448).
