@@ -164,27 +164,19 @@ struct Trees {
 
 impl Trees {
     fn build(prims: &[Primitive]) -> Trees {
-        let mut tris = Vec::new();
         let (mut bounds, mut ids) = (Vec::new(), Vec::new());
         for (i, p) in prims.iter().enumerate() {
-            match p.shape {
-                Shape::Triangle(_) => tris.push(i as u32),
-                s => {
-                    bounds.push(s.bounds());
-                    ids.push(i as u32);
-                }
+            if !matches!(p.shape, Shape::Triangle(_)) {
+                bounds.push(p.shape.bounds());
+                ids.push(i as u32);
             }
         }
-        let triangle = |k: usize| {
-            let i = tris[k];
-            match prims[i as usize].shape {
-                Shape::Triangle(t) => (i, t),
-                // `tris` holds the indices of triangles only.
-                _ => (i, shapes::Triangle { p: [glam::Vec3::NAN; 3], mesh: shapes::NO_MESH, face: 0 }),
-            }
+        let triangle = |i: usize| match prims[i].shape {
+            Shape::Triangle(t) => Some((i as u32, t)),
+            _ => None,
         };
         let (triangles, others) = rayon::join(
-            || TriBvh::build_over(tris.len(), triangle, bvh::tri4::TRIANGLE_LEAVES),
+            || TriBvh::build_over(prims.len(), triangle, bvh::tri4::TRIANGLE_LEAVES),
             || Bvh::build_for(&bounds, &ids),
         );
         Trees { triangles, others }

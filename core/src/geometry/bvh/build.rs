@@ -130,6 +130,13 @@ impl Box3 {
         self.union(Box3 { min: p, max: p })
     }
 
+    /// Half the surface area, as [`Aabb::half_area`] computes it (the same operations, so the same bits).
+    #[inline(always)]
+    fn half_area(self) -> f32 {
+        let d = (self.max - self.min).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    }
+
     fn aabb(self) -> Aabb {
         Aabb { min: self.min.into(), max: self.max.into() }
     }
@@ -164,23 +171,28 @@ impl Ref {
     }
 }
 
-/// The binary SAH tree over the `count > 0` boxes `bound(0)`, `bound(1)`, … (root at 0, depth-first) and the
-/// primitive order.
+/// The binary SAH tree over the boxes `bound(0)`, `bound(1)`, … `bound(count − 1)` that are not `None` (root at
+/// 0, depth-first) and the primitive order: the `i` of each box, in leaf order. `None` when every box is.
 pub(super) fn build_binary(
     count: usize,
-    bound: impl Fn(usize) -> Aabb + Sync,
+    bound: impl Fn(usize) -> Option<Aabb> + Sync,
     leaves: Leaves,
-) -> (Vec<BinaryNode>, Vec<u32>) {
+) -> Option<(Vec<BinaryNode>, Vec<u32>)> {
+    // A box left out is marked by a maximum's `w` of 1 (an exact-size parallel map, then one pass to drop them).
     let mut refs: Vec<Ref> = (0..count)
         .into_par_iter()
         .map(|i| {
-            let b = bound(i);
-            Ref { min: b.min.extend(f32::from_bits(i as u32)), max: b.max.extend(0.0) }
+            let (b, out) = bound(i).map_or((Aabb::EMPTY, 1.0), |b| (b, 0.0));
+            Ref { min: b.min.extend(f32::from_bits(i as u32)), max: b.max.extend(out) }
         })
         .collect();
-    let mut binary = Vec::with_capacity(count + count / 4);
+    refs.retain(|r| r.max.w == 0.0);
+    if refs.is_empty() {
+        return None;
+    }
+    let mut binary = Vec::with_capacity(refs.len() + refs.len() / 4);
     build_node(&mut refs, 0, 0, &mut binary, None, leaves);
-    (binary, refs.iter().map(Ref::index).collect())
+    Some((binary, refs.iter().map(Ref::index).collect()))
 }
 
 enum Split {
@@ -264,8 +276,7 @@ fn build_node(
             };
             let mid = n / 2;
             let cmp = |a: &Ref, b: &Ref| a.c()[axis].total_cmp(&b.c()[axis]).then(a.index().cmp(&b.index()));
-            // Left as it is when already split (as the partition leaves split input alone), so that a build
-            // over primitives in a tree's order gives that tree and that order again.
+            // Left as it is when already split: the selection is skipped.
             let (l, r) = refs.split_at(mid);
             let split = match (l.iter().max_by(|a, b| cmp(a, b)), r.iter().min_by(|a, b| cmp(a, b))) {
                 (Some(a), Some(b)) => cmp(a, b).is_lt(),
@@ -338,21 +349,43 @@ impl<const B: usize> Bins<B> {
     const EMPTY: Self = Bins { boxes: [[Box3::EMPTY; B]; 3], counts: [[0; B]; 3] };
 
     /// Adds `refs`, binned by `(c − lo)·scale` per axis.
+    ///
+    /// Neighbouring references often fall in the same bin, and each update of a bin waits for the previous one
+    /// to be stored: above [`SMALL_NODE`] references, the even and the odd ones go to two sets of bins, merged at
+    /// the end, which halves the chain.
     #[inline(always)]
     fn add(&mut self, refs: &[Ref], lo: Vec3A, scale: Vec3A) {
+        if refs.len() <= SMALL_NODE {
+            // Too few for the second set's clearing and merging to pay.
+            refs.iter().for_each(|r| self.add_one(r, lo, scale));
+            return;
+        }
+        let mut odd = Self::EMPTY;
+        let mut pairs = refs.chunks_exact(2);
+        for pair in &mut pairs {
+            self.add_one(&pair[0], lo, scale);
+            odd.add_one(&pair[1], lo, scale);
+        }
+        for r in pairs.remainder() {
+            self.add_one(r, lo, scale);
+        }
+        *self = self.merge(odd);
+    }
+
+    /// Adds one reference.
+    #[inline(always)]
+    fn add_one(&mut self, r: &Ref, lo: Vec3A, scale: Vec3A) {
         let top = Vec3A::splat((B - 1) as f32);
-        for r in refs {
-            // The bin on the three axes at once: ⌊(c − lo)·scale⌋, which is in [0, B] (the centroid is finite and
-            // not below `lo`; the top edge maps to B, hence the min), so one truncating conversion of the three
-            // lanes gives it.
-            let f = ((r.c() - lo) * scale).min(top);
-            let k = f32x4::from(Vec4::from((f, 0.0)).to_array()).fast_trunc_int().to_array();
-            let b = r.b();
-            for axis in 0..3 {
-                let k = (k[axis] as usize).min(B - 1);
-                self.boxes[axis][k] = self.boxes[axis][k].union(b);
-                self.counts[axis][k] += 1;
-            }
+        // The bin on the three axes at once: ⌊(c − lo)·scale⌋, which is in [0, B] (the centroid is finite and
+        // not below `lo`; the top edge maps to B, hence the min), so one truncating conversion of the three
+        // lanes gives it.
+        let f = ((r.c() - lo) * scale).min(top);
+        let k = f32x4::from(Vec4::from((f, 0.0)).to_array()).fast_trunc_int().to_array();
+        let b = r.b();
+        for axis in 0..3 {
+            let k = (k[axis] as usize).min(B - 1);
+            self.boxes[axis][k] = self.boxes[axis][k].union(b);
+            self.counts[axis][k] += 1;
         }
     }
 
@@ -394,7 +427,7 @@ fn sah_split<const B: usize>(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb, leaves
             if counts[k] > 0 {
                 rb = rb.union(boxes[k]);
                 rn += counts[k];
-                cost = rb.aabb().half_area() * leaves.cost(rn);
+                cost = rb.half_area() * leaves.cost(rn);
             }
             right_cost[k] = cost;
         }
@@ -409,7 +442,7 @@ fn sah_split<const B: usize>(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb, leaves
             if ln as usize == n {
                 continue;
             }
-            let cost = lb.aabb().half_area() * leaves.cost(ln) + right_cost[k + 1];
+            let cost = lb.half_area() * leaves.cost(ln) + right_cost[k + 1];
             if best.is_none_or(|(c, _, _)| cost < c) {
                 best = Some((cost, axis, k));
             }
@@ -434,26 +467,23 @@ fn sah_split<const B: usize>(refs: &[Ref], bounds: &Aabb, cbounds: &Aabb, leaves
 
 /// Moves the elements satisfying `left` to the front (a deterministic in-place partition); returns their count
 /// and the boxes of the two sides' centroids (each element is classified once, and added to its side's box then).
+///
+/// Branch-free Lomuto: every element is swapped to the boundary and the boundary moves on when it belongs to the
+/// left, so a side that is hard to predict costs no mispredicted branches. The left side keeps its order; the
+/// right side's is rotated.
 fn partition(refs: &mut [Ref], left: impl Fn(&Ref) -> bool) -> (usize, Box3, Box3) {
     let (mut lc, mut rc) = (Box3::EMPTY, Box3::EMPTY);
-    let mut i = 0;
-    let mut j = refs.len();
-    loop {
-        while i < j && left(&refs[i]) {
-            lc = lc.grow(refs[i].c());
-            i += 1;
-        }
-        while i < j && !left(&refs[j - 1]) {
-            rc = rc.grow(refs[j - 1].c());
-            j -= 1;
-        }
-        if i >= j {
-            return (i, lc, rc);
-        }
-        refs.swap(i, j - 1);
-        lc = lc.grow(refs[i].c());
-        rc = rc.grow(refs[j - 1].c());
-        i += 1;
-        j -= 1;
+    let nan = Vec3A::splat(f32::NAN);
+    let mut l = 0;
+    for i in 0..refs.len() {
+        let r = refs[i];
+        let (c, is_left) = (r.c(), left(&r));
+        let m = glam::BVec3A::splat(is_left);
+        // A NaN coordinate leaves a box as it is ([`Box3::union`]).
+        lc = lc.grow(Vec3A::select(m, c, nan));
+        rc = rc.grow(Vec3A::select(m, nan, c));
+        refs.swap(l, i);
+        l += usize::from(is_left);
     }
+    (l, lc, rc)
 }

@@ -27,7 +27,7 @@ impl Bvh {
 
     /// [`Bvh::build`] with the leaves `leaves` allows.
     pub fn build_with(bounds: &[Aabb], leaves: Leaves) -> Bvh {
-        let (tree, items) = Tree::build(bounds.len(), |i| bounds[i], leaves);
+        let (tree, items) = Tree::build(bounds.len(), |i| Some(bounds[i]), leaves);
         Bvh { tree, items }
     }
 

@@ -63,16 +63,19 @@ pub(crate) struct Tree {
 
 impl Tree {
     /// The binary SAH tree over the `count` boxes `bound(i)`, collapsed, and the primitive order its leaves'
-    /// ranges refer to.
+    /// ranges refer to: the `i` of each box, in leaf order. A `bound(i)` of `None` leaves primitive `i` out.
     ///
     /// # Panics
     /// With [`MAX_INDEX`] or more boxes.
-    pub(super) fn build(count: usize, bound: impl Fn(usize) -> Aabb + Sync, leaves: Leaves) -> (Tree, Vec<u32>) {
-        if count == 0 {
-            return (Tree::default(), Vec::new());
-        }
+    pub(super) fn build(
+        count: usize,
+        bound: impl Fn(usize) -> Option<Aabb> + Sync,
+        leaves: Leaves,
+    ) -> (Tree, Vec<u32>) {
         assert!(count < MAX_INDEX, "a BVH holds fewer than 2^28 primitives");
-        let (binary, order) = build_binary(count, bound, leaves);
+        let Some((binary, order)) = build_binary(count, bound, leaves) else {
+            return (Tree::default(), Vec::new());
+        };
         let mut nodes = collapse(&binary, leaves.merge);
         nodes.shrink_to_fit();
         (Tree { nodes, bounds: binary[0].b }, order)

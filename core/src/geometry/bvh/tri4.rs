@@ -219,19 +219,20 @@ impl TriBvh {
     /// # Panics
     /// With 2²⁸ or more triangles, or `leaves.max` or `leaves.merge` above [`MAX_LEAF_BLOCKS`] · [`LANES`].
     pub fn build_with(tris: &[(u32, Triangle)], leaves: Leaves) -> TriBvh {
-        TriBvh::build_over(tris.len(), |k| tris[k], leaves)
+        TriBvh::build_over(tris.len(), |k| Some(tris[k]), leaves)
     }
 
-    /// The tree over the `count` triangles `tri(0)`, `tri(1)`, …, each with its index: what [`TriBvh::build`]
-    /// builds, without a copy of the triangles. `tri` is called from rayon's threads.
+    /// The tree over the `count` triangles `tri(0)`, `tri(1)`, …, each with its index, leaving out those `tri`
+    /// gives as `None`: what [`TriBvh::build`] builds, without a copy of the triangles. `tri` is called from
+    /// rayon's threads.
     ///
     /// # Panics
     /// As [`TriBvh::build_with`].
-    pub fn build_over(count: usize, tri: impl Fn(usize) -> (u32, Triangle) + Sync, leaves: Leaves) -> TriBvh {
+    pub fn build_over(count: usize, tri: impl Fn(usize) -> Option<(u32, Triangle)> + Sync, leaves: Leaves) -> TriBvh {
         assert!(leaves.max.max(leaves.merge) <= MAX_LEAF_BLOCKS * LANES, "a leaf is at most {MAX_LEAF_BLOCKS} blocks");
         // The triangles a ray can hit, by position, and their boxes.
-        let kept: Vec<u32> = (0..count).filter(|&k| hittable(&tri(k).1)).map(|k| k as u32).collect();
-        let (mut tree, order) = Tree::build(kept.len(), |i| tri(kept[i] as usize).1.bounds(), leaves);
+        let bound = |k| tri(k).and_then(|(_, t)| hittable(&t).then(|| t.bounds()));
+        let (mut tree, order) = Tree::build(count, bound, leaves);
         // Each leaf becomes the next blocks, in node order, its triangles four a block; the blocks are filled in
         // parallel.
         let slots: Vec<(usize, usize)> = tree.leaf_slots().collect();
@@ -245,7 +246,7 @@ impl TriBvh {
         }
         let blocks = ranges
             .par_iter()
-            .map(|&(first, count)| block(order[first..first + count].iter().map(|&k| tri(kept[k as usize] as usize))))
+            .map(|&(first, count)| block(order[first..first + count].iter().filter_map(|&k| tri(k as usize))))
             .collect();
         TriBvh { tree, blocks }
     }
