@@ -27,9 +27,8 @@ use std::time::Duration;
 fn geometry(tris: &[Triangle]) -> Geometry {
     let prims =
         tris.iter().map(|&t| Primitive { shape: Shape::Triangle(t), material: 0, light: NONE, object: 0 }).collect();
-    let g = Geometry::new(prims, Vec::new(), Vec::new());
-    g.build_trees();
-    g
+    // Packed, as a worker holds it.
+    Geometry::new(prims, Vec::new(), Vec::new()).packed()
 }
 
 /// Traces every ray to its closest hit through the BVH (`Geometry::closest_bounded`, what `Geometry::intersect`
@@ -59,10 +58,9 @@ fn bench(c: &mut Criterion) {
         let indexed: Vec<(u32, Triangle)> = tris.iter().enumerate().map(|(i, &t)| (i as u32, t)).collect();
         let g = geometry(&tris);
         let bytes = g.bvh_bytes();
-        let prim_bytes = g.prims.len() * std::mem::size_of::<Primitive>();
         println!(
             "bvh {label}: {} triangles, {} nodes, {} blocks, depth {}, SAH cost {:.2}, {} bytes = {:.1} bytes/triangle \
-             ({:.1} with primitives)",
+             ({:.1} with the packed primitives)",
             tris.len(),
             g.triangle_tree().node_count(),
             g.triangle_tree().block_count(),
@@ -70,7 +68,7 @@ fn bench(c: &mut Criterion) {
             g.triangle_tree().sah_cost(),
             bytes,
             bytes as f64 / tris.len() as f64,
-            (bytes + prim_bytes) as f64 / tris.len() as f64
+            g.memory_bytes() as f64 / tris.len() as f64
         );
         let coherent = camera_rays(256, 256);
         let incoherent = random_rays(65_536, g.bounds());

@@ -431,7 +431,7 @@ impl Media {
         let ray = Ray::new(p, d);
         let n = self.boundaries.len();
         let (mut count, mut bounds) = (vec![0u32; n], vec![crate::math::Aabb::EMPTY; n]);
-        for pr in &geometry.prims {
+        for pr in geometry.prims() {
             let o = pr.object as usize;
             if Some(pr.object) == skip || !matches!(self.boundaries.get(o), Some(Boundary::Closed { .. })) {
                 continue;

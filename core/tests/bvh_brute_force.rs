@@ -275,9 +275,69 @@ fn a_decoded_geometry_has_the_trees_it_was_encoded_with() {
     let g = geometry(&tris);
     let blob = photon_core::codec::encode(&g).unwrap();
     // The blob is the primitives, planes, meshes and cut-outs, and nothing else.
-    assert_eq!(blob, photon_core::codec::encode(&(&g.prims, &g.planes, &g.meshes, &g.masks)).unwrap());
+    let prims: Vec<Primitive> = g.prims().collect();
+    assert_eq!(blob, photon_core::codec::encode(&(&prims, &g.planes, &g.meshes, &g.masks)).unwrap());
     let back: Geometry = photon_core::codec::decode(&blob, blob.len()).unwrap();
-    assert_eq!(back.prims, g.prims);
+    assert_eq!(back.prims().collect::<Vec<_>>(), prims);
     assert_eq!(back.triangle_tree().structure_hash(), g.triangle_tree().structure_hash());
     assert_eq!(back.triangle_tree(), g.triangle_tree());
+}
+
+/// Packing a geometry (what a worker does on decoding it) keeps every primitive and every answer, bit for bit:
+/// mesh faces in runs (with a skipped face, a change of material, lights carried in order and then not), bare
+/// triangles, spheres and rectangles between them, and the soup's degenerate triangles, which no block holds.
+/// A mesh's triangles then cost at most 64 bytes each, vertices included.
+#[test]
+fn a_packed_geometry_answers_as_the_listed_one() {
+    use photon_core::geometry::shapes::{Rect, Sphere};
+    let tris = soup(11, 20_000);
+    let mut s = Sampler::new(11, 2);
+    let mut prims = Vec::new();
+    for (i, &t) in tris.iter().enumerate() {
+        let i = i as u32;
+        // Faces of mesh 0, one skipped every 1000; the material changes at 5000; faces 2000 to 2499 carry lights
+        // 7, 8, …; one in 997 is a bare triangle; a sphere or a rectangle every 3001.
+        let mesh = if i.is_multiple_of(997) { photon_core::geometry::shapes::NO_MESH } else { 0 };
+        let face = i + i / 1000;
+        let light = if (2000..2500).contains(&i) { 7 + i - 2000 } else { NONE };
+        let material = u32::from(i >= 5000);
+        prims.push(Primitive { shape: Shape::Triangle(Triangle { mesh, face, ..t }), material, light, object: 3 });
+        if i.is_multiple_of(3001) {
+            let c = 10.0 * v3(&mut s);
+            let shape = if i.is_multiple_of(2) {
+                Shape::Sphere(Sphere { center: c, radius: 0.3 })
+            } else {
+                Shape::Rect(Rect { corner: c, u: Vec3::X, v: Vec3::Z })
+            };
+            prims.push(Primitive { shape, material: 1, light: NONE, object: 4 });
+        }
+    }
+    let listed = Geometry::new(prims.clone(), Vec::new(), Vec::new());
+    let packed = listed.clone().packed();
+    assert_eq!(packed.prim_count(), prims.len());
+    assert_eq!(packed.prims().collect::<Vec<_>>(), prims);
+    assert!(packed.prim(prims.len() as u32).is_none());
+    // The blob lists them as before.
+    assert_eq!(photon_core::codec::encode(&packed).unwrap(), photon_core::codec::encode(&listed).unwrap());
+    let (mut hits, mut others) = (0, 0);
+    for ray in rays(11, 20_000, &tris) {
+        let (a, b) = (listed.intersect(&ray, f32::INFINITY), packed.intersect(&ray, f32::INFINITY));
+        let key = |h: Option<photon_core::geometry::Hit>| {
+            h.map(|h| (h.prim, h.t.to_bits(), h.p.to_array().map(f32::to_bits), h.material, h.light, h.object))
+        };
+        assert_eq!(key(a), key(b));
+        hits += usize::from(a.is_some());
+        others += usize::from(a.is_some_and(|h| h.object == 4));
+        assert_eq!(listed.occluded(&ray, 5.0), packed.occluded(&ray, 5.0));
+    }
+    assert!(hits > 10_000 && others > 10, "{hits} hits, {others} on spheres and rectangles");
+    // A packed geometry that is changed is listed again, with the change.
+    let mut changed = packed.clone();
+    changed.prims_mut()[5].material = 9;
+    assert_eq!(changed.prim(5).map(|p| p.material), Some(9));
+    assert_eq!(changed.prim(6), packed.prim(6));
+    // The memory: the listed geometry holds each triangle twice (its primitive and the tree's block).
+    let per_triangle = |g: &Geometry| g.memory_bytes() as f64 / prims.len() as f64;
+    assert!(per_triangle(&packed) <= 64.0, "{} bytes a triangle packed", per_triangle(&packed));
+    assert!(per_triangle(&listed) > 100.0, "{} bytes a triangle listed", per_triangle(&listed));
 }

@@ -101,8 +101,7 @@ fn prepared_triangles(scene_path: &std::path::Path) -> Vec<[Vec3; 3]> {
     let prep = Prepared::new(&scene, scene_path).unwrap();
     let mut out: Vec<[Vec3; 3]> = prep
         .geometry
-        .prims
-        .iter()
+        .prims()
         .filter_map(|p| match &p.shape {
             Shape::Triangle(t) => Some(t.p),
             _ => None,

@@ -138,7 +138,7 @@ fn prepare(path: &Path) -> Prepared {
 }
 
 fn triangles(p: &Prepared) -> usize {
-    p.geometry.prims.iter().filter(|pr| matches!(pr.shape, Shape::Triangle(_))).count()
+    p.geometry.prims().filter(|pr| matches!(pr.shape, Shape::Triangle(_))).count()
 }
 
 fn image(p: &Prepared) -> Image {
@@ -153,7 +153,7 @@ fn sorted_triangles(tris: impl Iterator<Item = [Vec3; 3]>) -> Vec<[[u32; 3]; 3]>
 }
 
 fn prepared_triangles(p: &Prepared) -> Vec<[[u32; 3]; 3]> {
-    sorted_triangles(p.geometry.prims.iter().filter_map(|pr| match pr.shape {
+    sorted_triangles(p.geometry.prims().filter_map(|pr| match pr.shape {
         Shape::Triangle(t) => Some(t.p),
         _ => None,
     }))

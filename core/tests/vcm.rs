@@ -116,7 +116,7 @@ fn stored_paths(prep: &Prepared, count: usize) -> Vec<StoredPath> {
         }
         // Join a point on the light, seen from the last vertex on its emitting side.
         let Some(Light::Area { prim, .. }) = prep.lights.lights.first().copied() else { panic!("no area light") };
-        let (lp, _, _) = prep.geometry.prims[prim as usize].shape.sample_area_with_error(s.next_2d());
+        let (lp, _, _) = prep.geometry.prim(prim).unwrap().shape.sample_area_with_error(s.next_2d());
         let w = fmath::normalize(lp - last.hit.p);
         let Some(light) = prep.geometry.intersect(&last.hit.spawn_ray(w), f32::INFINITY) else { continue };
         let wl = -w;

@@ -14,7 +14,7 @@ pub mod shapes;
 
 use crate::math::{Aabb, Ray, offset_ray_origin_by_error};
 use bvh::walk::RayBox;
-use bvh::{Bvh, RayCost, TriBvh};
+use bvh::{Bvh, RayCost, TriBvh, tri4};
 use glam::{Vec2, Vec3A};
 use mask::AlphaMask;
 use serde::{Deserialize, Serialize};
@@ -128,20 +128,23 @@ impl Hit {
 ///
 /// Triangles are under one BVH of four-triangle blocks ([`TriBvh`]), the other bounded shapes under a BVH of
 /// their own ([`Bvh`]), so they cost mesh triangles nothing; infinite planes are tested beside both. The closest
-/// hit is the smallest distance, then the smallest index in `prims` (planes first): no tree decides it.
+/// hit is the smallest distance, then the smallest primitive index ([`Geometry::prim`]; planes first): no tree
+/// decides it.
 ///
 /// The trees are built on the first query, or by [`Geometry::build_trees`]: a coordinator that only ships the
 /// scene to its workers never builds them, and its workers build theirs at once, in parallel with each other.
-/// Its serialised form (what the scene blob carries) has no trees: deserialising builds them again, which gives
-/// the same trees ([`Bvh::build`]). Shipping them would cost the coordinator's link about 50 bytes per triangle
+/// Its serialised form (what the scene blob carries) has no trees and lists every primitive: deserialising builds
+/// the trees again, which gives the same trees ([`Bvh::build`]), and packs the primitives against them
+/// ([`Geometry::packed`]), so that a worker holds a mesh's vertices once, in the triangle tree. Shipping them would cost the coordinator's link about 50 bytes per triangle
 /// for every worker; building them costs each worker, in parallel, under half a microsecond per triangle on one
 /// thread (docs/RESULTS.md, "Rays at Embree's rate"), and a tree that was never on the wire cannot be a malformed
 /// one.
-#[derive(Clone, Debug, Default, Serialize, Deserialize)]
+#[derive(Clone, Debug, Default, Deserialize)]
 #[serde(from = "GeometryParts")]
 pub struct Geometry {
-    /// Bounded primitives, in the order the scene gave them; hits and lights name them by their index here.
-    pub prims: Vec<Primitive>,
+    /// Bounded primitives, in the order the scene gave them; hits and lights name them by their index here
+    /// ([`Geometry::prim`]).
+    prims: PrimStore,
     /// Infinite planes.
     pub planes: Vec<PlanePrimitive>,
     /// Shading data of meshes.
@@ -151,6 +154,125 @@ pub struct Geometry {
     /// The BVHs over `prims`, once built. The shapes in `prims` must not change after that.
     #[serde(skip)]
     trees: std::sync::OnceLock<Trees>,
+}
+
+/// Where a [`Geometry`] keeps its bounded primitives.
+#[derive(Clone, Debug)]
+enum PrimStore {
+    /// One [`Primitive`] each (60 bytes), as given: what a scene is prepared and shipped as.
+    Listed(Vec<Primitive>),
+    /// After [`Geometry::packed`]: a triangle's vertices are read from the blocks of the triangle tree, which
+    /// holds them anyway, and its other fields from the run of faces it is in.
+    Packed(Packed),
+}
+
+impl Default for PrimStore {
+    fn default() -> Self {
+        PrimStore::Listed(Vec::new())
+    }
+}
+
+/// [`Geometry::packed`] packs geometries whose triangle tree has room for at least this many triangles.
+pub const PACK_FROM: usize = 4096;
+
+/// Marks an entry of [`Packed::at`] that indexes [`Packed::rest`].
+const IN_REST: u32 = 1 << 31;
+
+/// Bounded primitives packed against the triangle tree: 4 bytes a triangle beside the tree's blocks, and a few
+/// bytes a run.
+#[derive(Clone, Debug, Default)]
+struct Packed {
+    /// Per primitive: where its triangle is in the blocks ([`TriBvh::locations`]), or [`IN_REST`] plus its index
+    /// in `rest`.
+    at: Vec<u32>,
+    /// Runs of triangles in the blocks, by their first primitive.
+    runs: Vec<Run>,
+    /// The primitives no block holds (spheres, rectangles, triangles no ray can hit), in order.
+    rest: Vec<Primitive>,
+}
+
+/// Consecutive triangle primitives, `first + k` being face `face + k` of mesh `mesh` (face `face` for triangles of
+/// no mesh, [`shapes::NO_MESH`]), of one material and object, carrying light `light + k` (none when `light` is
+/// [`NONE`]). Sums wrap, as they do when a run is formed, so every field comes back with the bits it had.
+#[derive(Clone, Copy, Debug)]
+struct Run {
+    first: u32,
+    mesh: u32,
+    face: u32,
+    material: u32,
+    light: u32,
+    object: u32,
+}
+
+impl Run {
+    fn start(i: u32, p: &Primitive, t: &shapes::Triangle) -> Run {
+        Run { first: i, mesh: t.mesh, face: t.face, material: p.material, light: p.light, object: p.object }
+    }
+
+    /// Primitive `first + k`'s face and light.
+    #[inline]
+    fn nth(&self, k: u32) -> (u32, u32) {
+        let face = if self.mesh == shapes::NO_MESH { self.face } else { self.face.wrapping_add(k) };
+        (face, if self.light == NONE { NONE } else { self.light.wrapping_add(k) })
+    }
+
+    /// Whether primitive `i`, triangle `t`, follows the run.
+    fn continues(&self, i: u32, p: &Primitive, t: &shapes::Triangle) -> bool {
+        let (face, light) = self.nth(i.wrapping_sub(self.first));
+        (t.mesh, t.face, p.material, p.light, p.object) == (self.mesh, face, self.material, light, self.object)
+    }
+}
+
+impl Packed {
+    /// Packs `list`, whose triangles the blocks of `tree` hold.
+    fn new(list: &[Primitive], tree: &TriBvh) -> Packed {
+        let mut packed = Packed { at: Vec::with_capacity(list.len()), ..Packed::default() };
+        for (i, (p, at)) in list.iter().zip(tree.locations(list.len())).enumerate() {
+            let i = i as u32;
+            match (p.shape, at) {
+                (Shape::Triangle(t), Some(at)) => {
+                    if !packed.runs.last().is_some_and(|r| r.continues(i, p, &t)) {
+                        packed.runs.push(Run::start(i, p, &t));
+                    }
+                    packed.at.push(at);
+                }
+                _ => {
+                    packed.at.push(IN_REST | packed.rest.len() as u32);
+                    packed.rest.push(*p);
+                }
+            }
+        }
+        packed.runs.shrink_to_fit();
+        packed.rest.shrink_to_fit();
+        packed
+    }
+
+    fn bytes(&self) -> usize {
+        self.at.capacity() * 4
+            + self.runs.capacity() * std::mem::size_of::<Run>()
+            + self.rest.capacity() * std::mem::size_of::<Primitive>()
+    }
+}
+
+/// The primitives a geometry keeps whole ([`Geometry::whole_view`]): by index when listed, through
+/// [`Packed::at`] when packed.
+#[derive(Clone, Copy)]
+struct Whole<'a> {
+    list: &'a [Primitive],
+    at: Option<&'a [u32]>,
+}
+
+impl<'a> Whole<'a> {
+    #[inline(always)]
+    fn get(self, i: u32) -> Option<&'a Primitive> {
+        match self.at {
+            None => self.list.get(i as usize),
+            Some(at) => {
+                let k = *at.get(i as usize)?;
+                if k & IN_REST != 0 { self.list.get((k & !IN_REST) as usize) } else { None }
+            }
+        }
+    }
 }
 
 /// The BVHs of a [`Geometry`].
@@ -193,11 +315,30 @@ struct GeometryParts {
 }
 
 impl From<GeometryParts> for Geometry {
-    /// A decoded geometry is a worker's, about to render: its trees are built now.
+    /// A decoded geometry is a worker's, about to render: its trees are built now, and its primitives packed
+    /// against them.
     fn from(p: GeometryParts) -> Self {
-        let g = Geometry::new(p.prims, p.planes, p.meshes).with_masks(p.masks);
-        g.build_trees();
-        g
+        Geometry::new(p.prims, p.planes, p.meshes).with_masks(p.masks).packed()
+    }
+}
+
+/// The scene blob's form of a geometry: its primitives listed, its planes, meshes and cut-outs, no trees (what
+/// `GeometryParts` reads back).
+impl Serialize for Geometry {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeStruct;
+        struct Listed<'a>(&'a Geometry);
+        impl Serialize for Listed<'_> {
+            fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+                serializer.collect_seq(self.0.prims())
+            }
+        }
+        let mut s = serializer.serialize_struct("Geometry", 4)?;
+        s.serialize_field("prims", &Listed(self))?;
+        s.serialize_field("planes", &self.planes)?;
+        s.serialize_field("meshes", &self.meshes)?;
+        s.serialize_field("masks", &self.masks)?;
+        s.end()
     }
 }
 
@@ -205,7 +346,26 @@ impl Geometry {
     /// The geometry of `prims` (which keep their order), `planes` and `meshes`; its trees are built when first
     /// needed.
     pub fn new(prims: Vec<Primitive>, planes: Vec<PlanePrimitive>, meshes: Vec<MeshShading>) -> Self {
-        Self { prims, planes, meshes, masks: Vec::new(), trees: std::sync::OnceLock::new() }
+        Self { prims: PrimStore::Listed(prims), planes, meshes, masks: Vec::new(), trees: std::sync::OnceLock::new() }
+    }
+
+    /// The geometry with its trees built and its primitives packed against them: a triangle's vertices are read
+    /// from the triangle tree's blocks, which hold them anyway, and its mesh, face, material, light and object
+    /// from the run of faces it is in, so a mesh's triangles cost about 4 bytes each beside the tree instead of a
+    /// 60-byte [`Primitive`] (docs/RESULTS.md, "Rays at Embree's rate"). Every query and [`Geometry::prim`]
+    /// answers as before, bit for bit. What a worker holds. A geometry of fewer triangles than [`PACK_FROM`] stays
+    /// as it is.
+    pub fn packed(mut self) -> Self {
+        if let PrimStore::Listed(list) = &self.prims {
+            let tree = &self.trees().triangles;
+            // A few thousand triangles hold too little to pack (56 bytes each); a listed primitive is one load
+            // away, a packed one two, which costs scenes of spheres and rectangles several percent.
+            if tree.block_count() * tri4::LANES >= PACK_FROM {
+                let packed = Packed::new(list, tree);
+                self.prims = PrimStore::Packed(packed);
+            }
+        }
+        self
     }
 
     /// Builds the trees now, if they are not built yet (on the current rayon pool, deterministically for any
@@ -216,7 +376,106 @@ impl Geometry {
 
     #[inline]
     fn trees(&self) -> &Trees {
-        self.trees.get_or_init(|| Trees::build(&self.prims))
+        self.trees.get_or_init(|| match &self.prims {
+            PrimStore::Listed(list) => Trees::build(list),
+            // Packing builds the trees first, and nothing unsets them.
+            PrimStore::Packed(_) => Trees::default(),
+        })
+    }
+
+    /// The number of bounded primitives.
+    pub fn prim_count(&self) -> usize {
+        match &self.prims {
+            PrimStore::Listed(list) => list.len(),
+            PrimStore::Packed(p) => p.at.len(),
+        }
+    }
+
+    /// Bounded primitive `i`, or `None` past the last.
+    #[inline]
+    pub fn prim(&self, i: u32) -> Option<Primitive> {
+        self.with_prim(i, |p| *p)
+    }
+
+    /// `f` of bounded primitive `i`, or `None` past the last: [`Geometry::prim`] without a copy where the
+    /// primitive is kept whole (what the hot paths use: a hit's surface data, a point sampled on a light).
+    #[inline(always)]
+    pub fn with_prim<R>(&self, i: u32, f: impl FnOnce(&Primitive) -> R) -> Option<R> {
+        let built;
+        let p = match (self.whole(i), &self.prims) {
+            (Some(p), _) => p,
+            (None, PrimStore::Packed(p)) => {
+                built = self.triangle(p, i, *p.at.get(i as usize)?)?;
+                &built
+            }
+            (None, PrimStore::Listed(_)) => return None,
+        };
+        // One call, so that `f` is inlined here.
+        Some(f(p))
+    }
+
+    /// Packed primitive `i`, the triangle at `at` in the blocks, from its run.
+    fn triangle(&self, p: &Packed, i: u32, at: u32) -> Option<Primitive> {
+        let run = p.runs.get(p.runs.partition_point(|r| r.first <= i).checked_sub(1)?)?;
+        let (face, light) = run.nth(i - run.first);
+        let vertices = self.trees().triangles.vertices(at)?;
+        let shape = Shape::Triangle(shapes::Triangle { p: vertices, mesh: run.mesh, face });
+        Some(Primitive { shape, material: run.material, light, object: run.object })
+    }
+
+    /// Bounded primitive `i` where it is kept whole (any primitive before [`Geometry::packed`], after it the
+    /// shapes other than triangles), without a copy.
+    #[inline(always)]
+    fn whole(&self, i: u32) -> Option<&Primitive> {
+        self.whole_view().get(i)
+    }
+
+    /// The primitives kept whole, with the store's kind settled once (for the leaf tests of a walk).
+    #[inline(always)]
+    fn whole_view(&self) -> Whole<'_> {
+        match &self.prims {
+            PrimStore::Listed(list) => Whole { list, at: None },
+            PrimStore::Packed(p) => Whole { list: &p.rest, at: Some(&p.at) },
+        }
+    }
+
+    /// The bounded primitives, in order.
+    pub fn prims(&self) -> impl ExactSizeIterator<Item = Primitive> + '_ {
+        let n = self.prim_count() as u32;
+        // Every index below the count has its primitive: `Packed::new` gives each one an entry.
+        (0..n).map(move |i| self.prim(i).unwrap_or_else(|| unreachable!("primitive {i} of {n} is missing")))
+    }
+
+    /// The bounded primitives, to change their materials, lights, objects or meshes' faces (a packed geometry is
+    /// listed again); their shapes' vertices must not change once the trees are built.
+    pub fn prims_mut(&mut self) -> &mut [Primitive] {
+        if let PrimStore::Packed(_) = self.prims {
+            self.prims = PrimStore::Listed(self.prims().collect());
+        }
+        match &mut self.prims {
+            PrimStore::Listed(list) => list,
+            PrimStore::Packed(_) => &mut [],
+        }
+    }
+
+    /// Heap bytes of the geometry: its trees, its primitives, planes and meshes' shading tables (not the cut-outs'
+    /// images).
+    pub fn memory_bytes(&self) -> usize {
+        let prims = match &self.prims {
+            PrimStore::Listed(list) => list.capacity() * std::mem::size_of::<Primitive>(),
+            PrimStore::Packed(p) => p.bytes(),
+        };
+        let shading: usize = self
+            .meshes
+            .iter()
+            .map(|m| {
+                m.normals.capacity() * 12
+                    + m.tangents.capacity() * 16
+                    + m.uvs.capacity() * 8
+                    + (m.normal_indices.capacity() + m.uv_indices.capacity()) * 12
+            })
+            .sum();
+        self.bvh_bytes() + prims + shading + self.planes.capacity() * std::mem::size_of::<PlanePrimitive>()
     }
 
     /// The BVH over the triangles.
@@ -232,7 +491,7 @@ impl Geometry {
 
     /// The bounding box of all bounded primitives.
     pub fn bounds(&self) -> Aabb {
-        self.prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.shape.bounds()))
+        self.prims().fold(Aabb::EMPTY, |b, p| b.union(p.shape.bounds()))
     }
 
     /// Heap bytes of the two BVHs (nodes, triangle blocks, index table), without `prims`.
@@ -255,7 +514,7 @@ impl Geometry {
             best = Some((PrimRef::Bounded(i), t));
         }
         let (prim, t) = best?;
-        Some(self.hit_data(ray, prim, t))
+        self.hit_data(ray, prim, t)
     }
 
     /// The closest hit in `(0, tmax)` among the bounded primitives (the BVHs'), without planes and without the
@@ -272,13 +531,17 @@ impl Geometry {
             let covers = |i, b1, b2| self.covers(i, Vec2::new(b1, b2));
             trees.triangles.closest_prepared(&tri, &boxes, tmax, None, covers, &mut ())
         };
-        trees.others.closest_prepared(
-            &boxes,
-            tmax,
-            best,
-            |i, tmax| self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax),
-            &mut (),
-        )
+        let hit = |p: &Primitive, tmax| p.shape.intersect_prepared(ray, &tri, tmax);
+        // Per store, so that a listed geometry's leaf test is the one load it always was.
+        match &self.prims {
+            PrimStore::Listed(list) => {
+                trees.others.closest_prepared(&boxes, tmax, best, |i, tmax| hit(list.get(i as usize)?, tmax), &mut ())
+            }
+            PrimStore::Packed(_) => {
+                let whole = self.whole_view();
+                trees.others.closest_prepared(&boxes, tmax, best, |i, tmax| hit(whole.get(i)?, tmax), &mut ())
+            }
+        }
     }
 
     /// [`Geometry::closest_bounded`] over the triangles alone, counting the work of the walk into `cost`: what
@@ -296,7 +559,7 @@ impl Geometry {
     /// `p`'s barycentrics; zero for other shapes and meshes without UVs (what a textured area light reads,
     /// [`crate::light::Light::le_at`]).
     pub fn uv_at(&self, prim: u32, p: Vec3A) -> Vec2 {
-        let Some(Shape::Triangle(tri)) = self.prims.get(prim as usize).map(|pr| pr.shape) else { return Vec2::ZERO };
+        let Some(Shape::Triangle(tri)) = self.with_prim(prim, |pr| pr.shape) else { return Vec2::ZERO };
         let Some(m) = self.meshes.get(tri.mesh as usize) else { return Vec2::ZERO };
         let Some(ix) = m.uv_indices.get(tri.face as usize) else { return Vec2::ZERO };
         let (b1, b2) = tri.barycentrics(p);
@@ -307,7 +570,7 @@ impl Geometry {
     /// Whether primitive `i` is present at barycentrics `b`: it is not a mesh face, or its mesh has no cut-out
     /// or no UVs, or its mask covers the UVs interpolated there.
     fn covers(&self, i: u32, b: Vec2) -> bool {
-        let Some(Shape::Triangle(tri)) = self.prims.get(i as usize).map(|p| p.shape) else { return true };
+        let Some(Shape::Triangle(tri)) = self.with_prim(i, |p| p.shape) else { return true };
         let Some(m) = self.meshes.get(tri.mesh as usize) else { return true };
         let (Some(mask), Some(ix)) =
             (m.mask.and_then(|k| self.masks.get(k as usize)), m.uv_indices.get(tri.face as usize))
@@ -332,22 +595,29 @@ impl Geometry {
         } else {
             trees.triangles.any_prepared(&tri, &boxes, tmax, |i, b1, b2| self.covers(i, Vec2::new(b1, b2)), &mut ())
         };
+        let hit =
+            |p: Option<&Primitive>, tmax| p.is_some_and(|p| p.shape.intersect_prepared(ray, &tri, tmax).is_some());
         blocked
-            || trees.others.any_prepared(&boxes, tmax, |i, tmax| {
-                self.prims[i as usize].shape.intersect_prepared(ray, &tri, tmax).is_some()
-            })
+            || match &self.prims {
+                PrimStore::Listed(list) => {
+                    trees.others.any_prepared(&boxes, tmax, |i, tmax| hit(list.get(i as usize), tmax))
+                }
+                PrimStore::Packed(_) => {
+                    let whole = self.whole_view();
+                    trees.others.any_prepared(&boxes, tmax, |i, tmax| hit(whole.get(i), tmax))
+                }
+            }
     }
 
-    fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Hit {
-        match prim {
+    fn hit_data(&self, ray: &Ray, prim: PrimRef, t: f32) -> Option<Hit> {
+        Some(match prim {
             PrimRef::Plane(i) => {
                 let pl = &self.planes[i as usize];
                 let LocalHit { p, p_error, n, uv, dpdu, dpdv } = pl.plane.local_hit(ray, t);
                 let (material, light, object) = (pl.material, NONE, pl.object);
                 Hit { t, p, p_error, n, ns: n, uv, dpdu, dpdv, material, light, object, prim }
             }
-            PrimRef::Bounded(i) => {
-                let pr = &self.prims[i as usize];
+            PrimRef::Bounded(i) => self.with_prim(i, |pr| {
                 let LocalHit { p, p_error, n, uv, dpdu, dpdv } = pr.shape.local_hit(ray, t);
                 let (n, ns, uv, dpdu, dpdv) = match pr.shape {
                     Shape::Triangle(tri) if tri.mesh != shapes::NO_MESH => {
@@ -359,8 +629,8 @@ impl Geometry {
                 };
                 let (material, light, object) = (pr.material, pr.light, pr.object);
                 Hit { t, p, p_error, n, ns, uv, dpdu, dpdv, material, light, object, prim }
-            }
-        }
+            })?,
+        })
     }
 
     /// Geometric normal, interpolated shading normal, and the texture coordinates with `∂p/∂u`, `∂p/∂v` when the

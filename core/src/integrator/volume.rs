@@ -67,7 +67,7 @@ impl LightPoint {
         let lp = match prep.lights.lights[i] {
             l @ (Light::Point { p, .. } | Light::Spot { p, .. }) => LightPoint::Point { p, light: l },
             l @ Light::Area { prim, two_sided, area, .. } => {
-                let (p, p_error, n) = prep.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
+                let (p, p_error, n) = prep.geometry.with_prim(prim, |p| p.shape.sample_area_with_error(u2))?;
                 let le = l.le_at(&prep.light_scene(), p);
                 LightPoint::Area { p, p_error, n, le, two_sided, area }
             }

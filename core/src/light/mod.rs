@@ -84,7 +84,7 @@ pub enum Light {
     },
     /// A diffuse emitter on bounded primitive `prim` of the geometry.
     Area {
-        /// Index into [`Geometry::prims`].
+        /// Index of the primitive ([`Geometry::prim`]).
         prim: u32,
         /// Emitted radiance; with `image`, its scale.
         le: Rgb,
@@ -397,7 +397,7 @@ impl Light {
                 Some(LightSample { wi, dist, li: intensity / dist2, pdf: 1.0, delta: true, p: lp })
             }
             Light::Area { prim, two_sided, area, .. } => {
-                let (lp, lp_error, ln) = scene.geometry.prims.get(prim as usize)?.shape.sample_area_with_error(u2);
+                let (lp, lp_error, ln) = scene.geometry.with_prim(prim, |p| p.shape.sample_area_with_error(u2))?;
                 let d = lp - p;
                 let dist2 = d.length_squared();
                 if dist2 == 0.0 {
@@ -463,8 +463,8 @@ impl Light {
                 (beta != Rgb::ZERO).then(|| at_light(Ray::new(p, d), beta, pdf, pick, true, false))
             }
             Light::Area { prim, two_sided, .. } => {
-                let pr = scene.geometry.prims.get(prim as usize)?;
-                let (p, p_error, n) = pr.shape.sample_area_with_error(u);
+                let ((p, p_error, n), object) =
+                    scene.geometry.with_prim(prim, |pr| (pr.shape.sample_area_with_error(u), pr.object))?;
                 let le = self.le_at(scene, p);
                 let side = if two_sided && s.next_f32() < 0.5 { -n } else { n };
                 let local = cosine_hemisphere(u2);
@@ -473,7 +473,7 @@ impl Light {
                 let (pdf_a, pdf_w) = self.pdf_le(pick, cos);
                 let ray = Ray::new(offset_ray_origin_by_error(p, p_error, side, d), d);
                 let beta = le * (cos / pdf_w);
-                let surface = Some((pr.object, n));
+                let surface = Some((object, n));
                 Some(LeSample { ray, beta, pdf_w, pdf_a, cos, delta: false, infinite: false, surface })
             }
             Light::Directional { d, irradiance, bounds } => {

@@ -86,8 +86,8 @@ impl SceneOwned {
 fn check_lights(lights: &LightSet, g: &Geometry, media: Option<&Media>) -> Result<(), FrameError> {
     for (l, light) in lights.lights.iter().enumerate() {
         if let Light::Area { prim, .. } = *light {
-            within(prim, g.prims.len(), || format!("lights[{l}].prim"), || "prims".into())?;
-            let carried = g.prims.get(prim as usize).map_or(NONE, |p| p.light);
+            within(prim, g.prim_count(), || format!("lights[{l}].prim"), || "prims".into())?;
+            let carried = g.prim(prim).map_or(NONE, |p| p.light);
             if carried as usize != l {
                 return Err(bad_table(
                     format!("lights[{l}].prim"),
@@ -123,7 +123,7 @@ fn check_lights(lights: &LightSet, g: &Geometry, media: Option<&Media>) -> Resul
 /// The primitives' and planes' materials, objects (when there are media: `objects` boundaries), lights (an area
 /// light on the primitive) and mesh triangles' meshes and faces.
 fn check_surfaces(g: &Geometry, materials: usize, lights: &[Light], objects: Option<usize>) -> Result<(), FrameError> {
-    for (i, p) in g.prims.iter().enumerate() {
+    for (i, p) in g.prims().enumerate() {
         let field = |f: &str| format!("prims[{i}].{f}");
         within(p.material, materials, || field("material"), || "materials".into())?;
         if let Some(n) = objects {

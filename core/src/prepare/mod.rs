@@ -213,7 +213,7 @@ fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<
     };
     // A point on each closed object's surface, tested against every other closed object.
     let mut on_surface: Vec<Option<Vec3A>> = vec![None; media.boundaries.len()];
-    for pr in &geometry.prims {
+    for pr in geometry.prims() {
         if let Some(slot @ None) = on_surface.get_mut(pr.object as usize) {
             *slot = Some(pr.shape.sample_area(glam::Vec2::splat(0.5)).0);
         }
@@ -237,7 +237,7 @@ fn media(scene: &Scene, geometry: &Geometry, lights: &LightSet, boundaries: Vec<
             Light::Point { p, .. } | Light::Spot { p, .. } => media.at(geometry, *p, None),
             // An open emitter's medium is the one around a point on it; a closed one's photons leave through
             // its surface, which `Media::leaving` settles.
-            Light::Area { prim, .. } => match geometry.prims.get(*prim as usize) {
+            Light::Area { prim, .. } => match geometry.prim(*prim) {
                 Some(pr) => media.at(geometry, pr.shape.sample_area(glam::Vec2::splat(0.5)).0, Some(pr.object)),
                 None => media.global,
             },
@@ -498,7 +498,7 @@ fn lights(
 ) -> LightSet {
     let mut lights: Vec<Light> = Vec::new();
     let mut area_lights: Vec<(u32, Light)> = Vec::new();
-    for (pi, p) in geometry.prims.iter().enumerate() {
+    for (pi, p) in geometry.prims().enumerate() {
         if p.light != NONE {
             let (e, image) = emitters[p.light as usize];
             area_lights.push((
@@ -555,13 +555,13 @@ fn lights(
         sky
     });
     // Primitives point at their light by the final light index.
-    let mut light_of_prim = vec![NONE; geometry.prims.len()];
+    let mut light_of_prim = vec![NONE; geometry.prim_count()];
     for (li, l) in lights.iter().enumerate() {
         if let Light::Area { prim, .. } = l {
             light_of_prim[*prim as usize] = li as u32;
         }
     }
-    for (p, l) in geometry.prims.iter_mut().zip(light_of_prim) {
+    for (p, l) in geometry.prims_mut().iter_mut().zip(light_of_prim) {
         p.light = l;
     }
     LightSet::new(lights, sky)

@@ -347,6 +347,28 @@ impl TriBvh {
         self.blocks.len()
     }
 
+    /// Where each triangle of the tree is: for each index `i < count` given at the build, `block · 4 + lane` of
+    /// its block, or `None` where no block holds it (an index not given, or a triangle no ray can hit).
+    pub(crate) fn locations(&self, count: usize) -> Vec<Option<u32>> {
+        let mut out = vec![None; count];
+        for (b, block) in self.blocks.iter().enumerate() {
+            for (lane, &id) in block.id.iter().enumerate() {
+                if let Some(slot) = out.get_mut(id as usize) {
+                    *slot = Some((b * LANES + lane) as u32);
+                }
+            }
+        }
+        out
+    }
+
+    /// The vertices of the triangle at `location` ([`TriBvh::locations`]), as they were given.
+    #[inline]
+    pub(crate) fn vertices(&self, location: u32) -> Option<[glam::Vec3; 3]> {
+        let (b, lane) = (location as usize / LANES, location as usize % LANES);
+        let p = &self.blocks.get(b)?.p;
+        Some(std::array::from_fn(|v| glam::Vec3::new(p[v][0][lane], p[v][1][lane], p[v][2][lane])))
+    }
+
     /// Heap bytes: nodes and blocks.
     pub fn memory_bytes(&self) -> usize {
         self.tree.memory_bytes() + self.blocks.capacity() * std::mem::size_of::<Tri4>()
