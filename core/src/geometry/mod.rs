@@ -135,10 +135,10 @@ impl Hit {
 /// scene to its workers never builds them, and its workers build theirs at once, in parallel with each other.
 /// Its serialised form (what the scene blob carries) has no trees and lists every primitive: deserialising builds
 /// the trees again, which gives the same trees ([`Bvh::build`]), and packs the primitives against them
-/// ([`Geometry::packed`]), so that a worker holds a mesh's vertices once, in the triangle tree. Shipping them would cost the coordinator's link about 50 bytes per triangle
-/// for every worker; building them costs each worker, in parallel, under half a microsecond per triangle on one
-/// thread (docs/RESULTS.md, "Rays at Embree's rate"), and a tree that was never on the wire cannot be a malformed
-/// one.
+/// ([`Geometry::packed`]), so that a worker holds a mesh's vertices once, in the triangle tree. Shipping the trees
+/// would cost the coordinator's link about 50 bytes per triangle for every worker; building them costs each
+/// worker, in parallel, under half a microsecond per triangle on one thread (docs/RESULTS.md, "Rays at Embree's
+/// rate"), and a tree that was never on the wire cannot be a malformed one.
 #[derive(Clone, Debug, Default, Deserialize)]
 #[serde(from = "GeometryParts")]
 pub struct Geometry {
@@ -247,31 +247,18 @@ impl Packed {
         packed
     }
 
+    /// Primitive `i` where it is kept whole: in `rest` (every primitive but the blocks' triangles, so every one
+    /// the tree of other shapes holds).
+    #[inline(always)]
+    fn whole(&self, i: u32) -> Option<&Primitive> {
+        let at = *self.at.get(i as usize)?;
+        if at & IN_REST != 0 { self.rest.get((at & !IN_REST) as usize) } else { None }
+    }
+
     fn bytes(&self) -> usize {
         self.at.capacity() * 4
             + self.runs.capacity() * std::mem::size_of::<Run>()
             + self.rest.capacity() * std::mem::size_of::<Primitive>()
-    }
-}
-
-/// The primitives a geometry keeps whole ([`Geometry::whole_view`]): by index when listed, through
-/// [`Packed::at`] when packed.
-#[derive(Clone, Copy)]
-struct Whole<'a> {
-    list: &'a [Primitive],
-    at: Option<&'a [u32]>,
-}
-
-impl<'a> Whole<'a> {
-    #[inline(always)]
-    fn get(self, i: u32) -> Option<&'a Primitive> {
-        match self.at {
-            None => self.list.get(i as usize),
-            Some(at) => {
-                let k = *at.get(i as usize)?;
-                if k & IN_REST != 0 { self.list.get((k & !IN_REST) as usize) } else { None }
-            }
-        }
     }
 }
 
@@ -402,13 +389,15 @@ impl Geometry {
     #[inline(always)]
     pub fn with_prim<R>(&self, i: u32, f: impl FnOnce(&Primitive) -> R) -> Option<R> {
         let built;
-        let p = match (self.whole(i), &self.prims) {
-            (Some(p), _) => p,
-            (None, PrimStore::Packed(p)) => {
-                built = self.triangle(p, i, *p.at.get(i as usize)?)?;
-                &built
-            }
-            (None, PrimStore::Listed(_)) => return None,
+        let p = match &self.prims {
+            PrimStore::Listed(list) => list.get(i as usize)?,
+            PrimStore::Packed(p) => match p.whole(i) {
+                Some(p) => p,
+                None => {
+                    built = self.triangle(p, i, *p.at.get(i as usize)?)?;
+                    &built
+                }
+            },
         };
         // One call, so that `f` is inlined here.
         Some(f(p))
@@ -421,22 +410,6 @@ impl Geometry {
         let vertices = self.trees().triangles.vertices(at)?;
         let shape = Shape::Triangle(shapes::Triangle { p: vertices, mesh: run.mesh, face });
         Some(Primitive { shape, material: run.material, light, object: run.object })
-    }
-
-    /// Bounded primitive `i` where it is kept whole (any primitive before [`Geometry::packed`], after it the
-    /// shapes other than triangles), without a copy.
-    #[inline(always)]
-    fn whole(&self, i: u32) -> Option<&Primitive> {
-        self.whole_view().get(i)
-    }
-
-    /// The primitives kept whole, with the store's kind settled once (for the leaf tests of a walk).
-    #[inline(always)]
-    fn whole_view(&self) -> Whole<'_> {
-        match &self.prims {
-            PrimStore::Listed(list) => Whole { list, at: None },
-            PrimStore::Packed(p) => Whole { list: &p.rest, at: Some(&p.at) },
-        }
     }
 
     /// The bounded primitives, in order.
@@ -537,9 +510,8 @@ impl Geometry {
             PrimStore::Listed(list) => {
                 trees.others.closest_prepared(&boxes, tmax, best, |i, tmax| hit(list.get(i as usize)?, tmax), &mut ())
             }
-            PrimStore::Packed(_) => {
-                let whole = self.whole_view();
-                trees.others.closest_prepared(&boxes, tmax, best, |i, tmax| hit(whole.get(i)?, tmax), &mut ())
+            PrimStore::Packed(p) => {
+                trees.others.closest_prepared(&boxes, tmax, best, |i, tmax| hit(p.whole(i)?, tmax), &mut ())
             }
         }
     }
@@ -602,10 +574,7 @@ impl Geometry {
                 PrimStore::Listed(list) => {
                     trees.others.any_prepared(&boxes, tmax, |i, tmax| hit(list.get(i as usize), tmax))
                 }
-                PrimStore::Packed(_) => {
-                    let whole = self.whole_view();
-                    trees.others.any_prepared(&boxes, tmax, |i, tmax| hit(whole.get(i), tmax))
-                }
+                PrimStore::Packed(p) => trees.others.any_prepared(&boxes, tmax, |i, tmax| hit(p.whole(i), tmax)),
             }
     }
 
