@@ -8,9 +8,6 @@ use glam::Vec3;
 /// Children per node of the traversed tree.
 pub const WIDTH: usize = 8;
 
-/// The SIMD vector of one value per slot.
-pub(crate) type Lanes = wide::f32x8;
-
 /// Bits of a slot's entry ([`Node::child`]) that hold a leaf's primitive count; the others hold an index.
 const COUNT_BITS: u32 = 4;
 

@@ -124,7 +124,7 @@ impl Tri4 {
         let mut e = [x[1] * y[2] - y[1] * x[2], x[2] * y[0] - y[2] * x[0], x[0] * y[1] - y[0] * x[1]];
         let on_edge = (e[0].simd_eq(zero) | e[1].simd_eq(zero) | e[2].simd_eq(zero)).to_bitmask();
         if on_edge != 0 {
-            e = exact_edges(on_edge, &x, &y, e);
+            e = exact_edges(on_edge, x, y, e);
         }
         let neg = e[0].simd_lt(zero) | e[1].simd_lt(zero) | e[2].simd_lt(zero);
         let pos = e[0].simd_gt(zero) | e[1].simd_gt(zero) | e[2].simd_gt(zero);
@@ -160,7 +160,7 @@ impl Tri4 {
 /// The edge functions of the lanes in `lanes` decided in f64, as the scalar test does when one rounds to zero:
 /// products of f32 are exact there and the difference is rounded once.
 #[cold]
-fn exact_edges(lanes: u32, x: &[f32x4; 3], y: &[f32x4; 3], e: [f32x4; 3]) -> [f32x4; 3] {
+fn exact_edges(lanes: u32, x: [f32x4; 3], y: [f32x4; 3], e: [f32x4; 3]) -> [f32x4; 3] {
     let (x, y) = (x.map(|v| v.to_array()), y.map(|v| v.to_array()));
     let mut e = e.map(|v| v.to_array());
     for l in 0..LANES {
@@ -290,20 +290,24 @@ impl TriBvh {
     ) -> Option<(u32, f32)> {
         let mut tmax = best.map_or(tmax, |b| b.1);
         let block_ray = BlockRay::new(tri);
-        self.tree.closest(ray, &mut tmax, cost, |first, count, tmax| {
-            for block in &self.blocks[first as usize..(first + count.div_ceil(LANES as u32)) as usize] {
-                // With a hit so far, a tie at its distance is still a candidate (`t ≤ tmax`).
-                let bound = if best.is_some() { next_float_up(*tmax) } else { *tmax };
-                let h = block.intersect(&block_ray, bound);
-                for l in h.lanes() {
-                    let (t, id) = (h.t[l], block.id[l]);
-                    if better(t, id, best) && keep(id, h.b1[l], h.b2[l]) {
-                        *tmax = t;
-                        best = Some((id, t));
+        let leaf = {
+            #[inline(always)]
+            |first: u32, count: u32, tmax: &mut f32| {
+                for block in &self.blocks[first as usize..(first + count.div_ceil(LANES as u32)) as usize] {
+                    // With a hit so far, a tie at its distance is still a candidate (`t ≤ tmax`).
+                    let bound = if best.is_some() { next_float_up(*tmax) } else { *tmax };
+                    let h = block.intersect(&block_ray, bound);
+                    for l in h.lanes() {
+                        let (t, id) = (h.t[l], block.id[l]);
+                        if better(t, id, best) && keep(id, h.b1[l], h.b2[l]) {
+                            *tmax = t;
+                            best = Some((id, t));
+                        }
                     }
                 }
             }
-        });
+        };
+        self.tree.closest(ray, &mut tmax, cost, leaf);
         best
     }
 

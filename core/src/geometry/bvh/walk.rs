@@ -6,8 +6,14 @@
 //! ([`super::Bvh`], [`super::TriBvh`]).
 
 use super::build::MAX_DEPTH;
-use super::tree::{Lanes, Node, Tree, WIDTH, split_entry};
+use super::tree::{Node, Tree, WIDTH, split_entry};
 use glam::Vec3A;
+use wide::f32x4;
+
+/// The SIMD vector of half a node's slots: the box test runs on each half in turn, so the ray's six vectors
+/// and both running distances stay in SSE2's or NEON's registers.
+type Half = f32x4;
+const _: () = assert!(WIDTH % 4 == 0);
 
 /// Traversal stack entries: each node on the path leaves at most `WIDTH − 1` siblings behind.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
@@ -100,9 +106,9 @@ fn with_stack<R>(f: impl FnOnce(&mut [Entry; STACK]) -> R) -> R {
 
 /// A ray prepared for box tests.
 pub(crate) struct RayBox {
-    o: [Lanes; 3],
+    o: [Half; 3],
     /// `1/d` per axis (±∞ for a zero component).
-    inv: [Lanes; 3],
+    inv: [Half; 3],
     /// The octant: bit `a` is set when the direction is negative on axis `a` (from the sign of `1/d`, so that −0
     /// counts as negative consistently); such an axis enters a box through its max plane.
     octant: usize,
@@ -111,7 +117,7 @@ pub(crate) struct RayBox {
 /// `a > b ? a : b` lane by lane: `b` where `a` is NaN. On x86 this is exactly `maxps a, b`; elsewhere a compare
 /// and a select (NEON's `fmax` would return the NaN).
 #[inline(always)]
-fn max_or_second(a: Lanes, b: Lanes) -> Lanes {
+fn max_or_second(a: Half, b: Half) -> Half {
     #[cfg(target_arch = "x86_64")]
     {
         a.fast_max(b)
@@ -124,7 +130,7 @@ fn max_or_second(a: Lanes, b: Lanes) -> Lanes {
 
 /// `a < b ? a : b` lane by lane: `b` where `a` is NaN (`minps a, b` on x86).
 #[inline(always)]
-fn min_or_second(a: Lanes, b: Lanes) -> Lanes {
+fn min_or_second(a: Half, b: Half) -> Half {
     #[cfg(target_arch = "x86_64")]
     {
         a.fast_min(b)
@@ -142,8 +148,8 @@ impl RayBox {
         let inv = d.recip();
         let octant = usize::from(inv.x < 0.0) | usize::from(inv.y < 0.0) << 1 | usize::from(inv.z < 0.0) << 2;
         Self {
-            o: [Lanes::splat(o.x), Lanes::splat(o.y), Lanes::splat(o.z)],
-            inv: [Lanes::splat(inv.x), Lanes::splat(inv.y), Lanes::splat(inv.z)],
+            o: [Half::splat(o.x), Half::splat(o.y), Half::splat(o.z)],
+            inv: [Half::splat(inv.x), Half::splat(inv.y), Half::splat(inv.z)],
             octant,
         }
     }
@@ -152,22 +158,33 @@ impl RayBox {
     /// their near distances. Per axis `near = (b_near − o)·(1/d)` and `far = (b_far − o)·(1/d)`; `t0 = max(0,
     /// near…)`, `t1 = min(tmax, far…)·FAR_SCALE`, hit when `t0 ≤ t1`. A NaN slab distance (0·∞: a ray on a slab
     /// plane and parallel to it) leaves the interval unchanged ([`max_or_second`]), so there are no false misses.
-    /// Unused slots hold an empty box (min +∞, max −∞), which no ray meets.
+    /// Unused slots hold an empty box (min +∞, max −∞), which no ray meets. The slots are tested four at a time
+    /// ([`Half`]), each lane as it would be alone.
     ///
     /// The box test decides only which leaves are visited, never which hit is found, as long as it never misses
     /// a box the ray meets ([`FAR_SCALE`]).
     #[inline(always)]
-    fn hits<const OCT: usize>(&self, node: &Node, tmax: f32) -> (u32, Lanes) {
-        let mut t0 = Lanes::splat(0.0);
-        let mut t1 = Lanes::splat(tmax);
-        for a in 0..3 {
-            let (bn, bf) = if (OCT >> a) & 1 == 1 { (node.hi[a], node.lo[a]) } else { (node.lo[a], node.hi[a]) };
-            let near = (Lanes::from(bn) - self.o[a]) * self.inv[a];
-            let far = (Lanes::from(bf) - self.o[a]) * self.inv[a];
-            t0 = max_or_second(near, t0);
-            t1 = min_or_second(far, t1);
+    fn hits<const OCT: usize>(&self, node: &Node, tmax: f32) -> (u32, [f32; WIDTH]) {
+        let mut mask = 0;
+        let mut near = [0.0; WIDTH];
+        for h in 0..WIDTH / 4 {
+            let plane = |p: &[[f32; WIDTH]; 3], a: usize| {
+                let s = &p[a];
+                Half::from([s[4 * h], s[4 * h + 1], s[4 * h + 2], s[4 * h + 3]])
+            };
+            let mut t0 = Half::splat(0.0);
+            let mut t1 = Half::splat(tmax);
+            for a in 0..3 {
+                let (bn, bf) = if (OCT >> a) & 1 == 1 { (&node.hi, &node.lo) } else { (&node.lo, &node.hi) };
+                let n = (plane(bn, a) - self.o[a]) * self.inv[a];
+                let f = (plane(bf, a) - self.o[a]) * self.inv[a];
+                t0 = max_or_second(n, t0);
+                t1 = min_or_second(f, t1);
+            }
+            mask |= t0.simd_le(t1 * Half::splat(FAR_SCALE)).to_bitmask() << (4 * h);
+            near[4 * h..4 * h + 4].copy_from_slice(&t0.to_array());
         }
-        (t0.simd_le(t1 * Lanes::splat(FAR_SCALE)).to_bitmask(), t0)
+        (mask, near)
     }
 }
 
@@ -203,9 +220,12 @@ impl Tree {
         if self.nodes.is_empty() {
             return;
         }
-        let leaf = |child, count, tmax: &mut f32| {
-            leaf(child, count, tmax);
-            false
+        let leaf = {
+            #[inline(always)]
+            |child, count, tmax: &mut f32| {
+                leaf(child, count, tmax);
+                false
+            }
         };
         by_octant!(ray.octant, walk, self, ray, tmax, cost, leaf);
     }
@@ -251,7 +271,6 @@ fn walk<const OCT: usize>(
                 cost.node();
                 let (mask, t0) = ray.hits::<OCT>(n, bound(*tmax));
                 if mask != 0 {
-                    let t0 = t0.to_array();
                     let slot = |s: u32| Entry { child: n.child[s as usize], t0: t0[s as usize] };
                     let first = slot(mask.trailing_zeros());
                     let rest = mask & (mask - 1);
