@@ -13,7 +13,7 @@ use wide::f32x4;
 /// The SIMD vector of half a node's slots: the box test runs on each half in turn, so the ray's six vectors
 /// and both running distances stay in SSE2's or NEON's registers.
 type Half = f32x4;
-const _: () = assert!(WIDTH % 4 == 0);
+const _: () = assert!(WIDTH.is_multiple_of(4));
 
 /// Traversal stack entries: each node on the path leaves at most `WIDTH − 1` siblings behind.
 const STACK: usize = (WIDTH - 1) * MAX_DEPTH + 1;
