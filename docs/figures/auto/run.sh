@@ -45,9 +45,12 @@ for name in ${SCENES:-cornell-boxes cornell-spheres fog volume-caustic}; do
   rel_mse() { "$pc" compare "$1" "$2" | grep -o 'rel_mse=[^ ]*' | cut -d= -f2; }
   # Half the references' error against each other: each one's own noise (0 with one reference).
   noise=0
-  if [ ${#references[@]} -eq 2 ]; then
-    noise=$(awk -v e="$(rel_mse "${references[0]}" "${references[1]}")" 'BEGIN { print e / 2 }')
-  fi
+  case ${#references[@]} in
+    1) ;;
+    2) mutual=$(rel_mse "${references[0]}" "${references[1]}")
+       noise=$(awk -v e="$mutual" 'BEGIN { print e / 2 }') ;;
+    *) echo "$name: one or two references, not ${#references[@]}" >&2; exit 2 ;;
+  esac
   for t in ${TIMES:-5 20 40}; do
     for m in auto ${METHODS-$methods}; do
       img=$work/$name-$m-$t.exr
@@ -56,8 +59,10 @@ for name in ${SCENES:-cornell-boxes cornell-spheres fog volume-caustic}; do
       # The method that rendered (auto's choice) and its passes or samples, from the summary line.
       chosen=$(sed -E 's/.*stopped [^,]*, ([a-z-]+), .*/\1/' <<<"$summary")
       passes=$(sed -E 's/^[^,]*, ([0-9]+) (spp|passes).*/\1/' <<<"$summary")
-      e=$(for r in "${references[@]}"; do rel_mse "$img" "$r"; done |
-        awk -v noise="$noise" '{ s += $1; n++ } END { printf "%.6g\n", s / n - noise }')
+      errors=()
+      for r in "${references[@]}"; do errors+=("$(rel_mse "$img" "$r")"); done
+      e=$(printf '%s\n' "${errors[@]}" | awk -v noise="$noise" -v want=${#references[@]} '
+        /^[0-9.eE+-]+$/ { s += $1; n++ } END { if (n != want) exit 1; printf "%.6g\n", s / n - noise }')
       echo "$name,$t,$m,$chosen,$passes,$e" | tee -a "$out"
     done
   done

@@ -21,7 +21,7 @@ use wide::f32x4;
 /// Triangles per block.
 pub const LANES: usize = 4;
 
-/// The SAH cost of testing one block, in node visits (each a test of four boxes): a block test does about
+/// The SAH cost of testing one block, in node visits (each a test of a node's boxes): a block test does about
 /// twice a node test's arithmetic.
 pub const BLOCK_COST: f32 = 2.0;
 

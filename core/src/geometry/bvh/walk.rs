@@ -35,7 +35,7 @@ pub const CULL_MARGIN: f32 = 1.0 / 1024.0;
 /// timings, so two trees can be compared exactly on the same rays.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct RayCost {
-    /// Interior nodes whose four boxes were tested.
+    /// Interior nodes whose boxes were tested.
     pub nodes: u64,
     /// Leaves tested (a range of primitives, or one or two triangle blocks).
     pub leaves: u64,
