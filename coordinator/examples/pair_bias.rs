@@ -33,8 +33,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (la, lb) = halves(&l2, &l4);
     let (sa, sb) = halves(&s2, &s4);
-    let bias2 =
-        photon_coordinator::auto::radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference, 2.0 / 3.0);
+    let share = photon_coordinator::auto::EdgeShare::new(photon_core::render::progressive::KERNEL);
+    let bias2 = photon_coordinator::auto::radius_pair_bias2(
+        ([&la, &lb], [2, 2]),
+        ([&sa, &sb], [2, 2]),
+        &reference,
+        2.0 / 3.0,
+        &share,
+    );
     let rel_mse = |img: &[f32]| {
         let sum: f64 = img
             .iter()

@@ -36,6 +36,10 @@ use rayon::prelude::*;
 use std::ops::Range;
 use std::time::Instant;
 
+/// The kernel progressive photon mapping gathers with: the flat disc, whose estimate is the photons' flux over
+/// `π r²` (Hachisuka, Ogaki & Jensen 2008), whatever `render.photons.kernel` says.
+pub const KERNEL: Kernel = Kernel::Box;
+
 /// Renders progressive photon mapping's passes `passes` over rows `rows`: each pixel channel's sum over those
 /// passes of its fixed-point estimate. `progress` gets the passes finished so far; `guard` stops the render
 /// (checked before every photon path and every pixel) and bounds each pass's photons.
@@ -150,7 +154,7 @@ fn render_pass(
     let ph = &prep.settings.photons;
     let est = Estimator {
         gather: Gather::Radius { radius: r2.sqrt() },
-        kernel: Kernel::Box,
+        kernel: KERNEL,
         disc: ph.disc,
         same_object: ph.same_object,
     };
