@@ -9,8 +9,10 @@
 //! (the pilot uses the mean of every candidate's pilot there; a high-budget reference shows the estimator's own
 //! noise), and `L4`'s and `S4`'s relative MSE against the reference.
 
+use photon_coordinator::auto::{EdgeShare, radius_pair_bias2};
 use photon_core::image_io::Image;
-use photon_core::metrics::EPSILON;
+use photon_core::metrics::compare;
+use photon_core::render::progressive;
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -18,40 +20,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let [reference, l2, l4, s2, s4] = args.as_slice() else {
         return Err("usage: pair_bias REFERENCE.exr L2.exr L4.exr S2.exr S4.exr".into());
     };
-    let read = |p: &str| Image::read(Path::new(p)).map(|i| i.pixels);
+    let read = |p: &str| Image::read(Path::new(p));
     let reference = read(reference)?;
     let [l2, l4, s2, s4] = [l2, l4, s2, s4].map(|p| read(p));
     let (l2, l4, s2, s4) = (l2?, l4?, s2?, s4?);
-    if [l2.len(), l4.len(), s2.len(), s4.len()].iter().any(|&n| n != reference.len()) {
+    if [&l2, &l4, &s2, &s4].iter().any(|i| i.pixels.len() != reference.pixels.len()) {
         return Err("the images and the reference differ in size".into());
     }
     // Sums over each half's two passes.
-    let halves = |two: &[f32], four: &[f32]| {
-        let a: Vec<f64> = two.iter().map(|&x| 2.0 * f64::from(x)).collect();
-        let b: Vec<f64> = four.iter().zip(&a).map(|(&x, a)| 4.0 * f64::from(x) - a).collect();
+    let halves = |two: &Image, four: &Image| {
+        let a: Vec<f64> = two.pixels.iter().map(|&x| 2.0 * f64::from(x)).collect();
+        let b: Vec<f64> = four.pixels.iter().zip(&a).map(|(&x, a)| 4.0 * f64::from(x) - a).collect();
         (a, b)
     };
     let (la, lb) = halves(&l2, &l4);
     let (sa, sb) = halves(&s2, &s4);
-    let share = photon_coordinator::auto::EdgeShare::new(photon_core::render::progressive::KERNEL);
-    let bias2 = photon_coordinator::auto::radius_pair_bias2(
-        ([&la, &lb], [2, 2]),
-        ([&sa, &sb], [2, 2]),
-        &reference,
-        2.0 / 3.0,
-        &share,
-    );
-    let rel_mse = |img: &[f32]| {
-        let sum: f64 = img
-            .iter()
-            .zip(&reference)
-            .map(|(&x, &r)| {
-                let (x, r) = (f64::from(x), f64::from(r));
-                (x - r) * (x - r) / (r * r + EPSILON)
-            })
-            .sum();
-        sum / img.len() as f64
-    };
-    println!("bias2_r0 {bias2:.4e} rel_mse_r0 {:.4e} rel_mse_half {:.4e}", rel_mse(&l4), rel_mse(&s4));
+    let share = EdgeShare::new(progressive::KERNEL);
+    let bias2 = radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference.pixels, 2.0 / 3.0, &share);
+    let rel_mse = |img: &Image| compare(img, &reference, None).map(|m| m.rel_mse);
+    println!("bias2_r0 {bias2:.4e} rel_mse_r0 {:.4e} rel_mse_half {:.4e}", rel_mse(&l4)?, rel_mse(&s4)?);
     Ok(())
 }

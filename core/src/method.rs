@@ -272,6 +272,16 @@ impl Method {
         }
     }
 
+    /// The kernel the method's density estimates weight photons with, given the scene's
+    /// `render.photons.kernel`: progressive photon mapping's flat disc whatever it says
+    /// ([`crate::render::progressive::KERNEL`]), the configured one for the others that gather or merge.
+    pub fn kernel(self, configured: crate::photon::Kernel) -> crate::photon::Kernel {
+        match self {
+            Method::Progressive => crate::render::progressive::KERNEL,
+            _ => configured,
+        }
+    }
+
     /// The bias of the method's estimate.
     pub fn bias(self) -> Bias {
         match self {

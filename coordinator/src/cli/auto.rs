@@ -16,7 +16,7 @@ use crate::out::live::LiveCandidate;
 use crate::out::report::{Summary, print_workers};
 use anyhow::{Context, Result, bail};
 use photon_core::image_io::{Format, Image};
-use photon_core::method::{Method, RadiusSetting};
+use photon_core::method::RadiusSetting;
 use photon_core::prepare::Prepared;
 use photon_core::scene::Scene;
 use std::path::Path;
@@ -90,7 +90,8 @@ fn bias_from_the_radius_pair(piloted: &mut [Piloted], pooled: &[f32]) {
     }
     let alpha = piloted[l].scene.render.photons.alpha;
     let (Some(hl), Some(hs)) = (halves(&piloted[l]), halves(&piloted[s])) else { return };
-    let share = auto::EdgeShare::new(photon_core::render::progressive::KERNEL);
+    let photons = &piloted[l].scene.render.photons;
+    let share = auto::EdgeShare::new(piloted[l].judged.candidate.method.kernel(photons.kernel));
     let b = auto::radius_pair_bias2(hl, hs, pooled, alpha, &share);
     // The band of an edge narrows with the radius (see `auto::edge_band`).
     let ratio = f64::from(small / large);
@@ -164,12 +165,7 @@ async fn choose(run: &PilotRun<'_>, candidates: &[Candidate]) -> Result<Choice> 
     };
     for p in &mut piloted {
         let photons = &p.scene.render.photons;
-        // The kernel whose edges bias the candidate: progressive photon mapping's flat one, vcm's own.
-        let kernel = match p.judged.candidate.method {
-            Method::Progressive => photon_core::render::progressive::KERNEL,
-            _ => photons.kernel,
-        };
-        let share = auto::EdgeShare::new(kernel);
+        let share = auto::EdgeShare::new(p.judged.candidate.method.kernel(photons.kernel));
         p.judged.score = auto::score(p.judged.candidate, photons.alpha, &share, p.judged.pilot.as_ref(), goal);
     }
     let judged: Vec<Judged> = piloted.iter().map(|p| p.judged.clone()).collect();
