@@ -11,8 +11,9 @@
 
 use photon_coordinator::auto::{EdgeShare, radius_pair_bias2};
 use photon_core::image_io::Image;
+use photon_core::method::Method;
 use photon_core::metrics::compare;
-use photon_core::render::progressive;
+use photon_core::photon::Kernel;
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -35,7 +36,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     };
     let (la, lb) = halves(&l2, &l4);
     let (sa, sb) = halves(&s2, &s4);
-    let share = EdgeShare::new(progressive::KERNEL);
+    // Progressive photon mapping's kernel, whatever the scene's setting.
+    let share = EdgeShare::new(Method::Progressive.kernel(Kernel::Epanechnikov));
     let bias2 = radius_pair_bias2(([&la, &lb], [2, 2]), ([&sa, &sb], [2, 2]), &reference.pixels, 2.0 / 3.0, &share);
     let rel_mse = |img: &Image| compare(img, &reference, None).map(|m| m.rel_mse);
     println!("bias2_r0 {bias2:.4e} rel_mse_r0 {:.4e} rel_mse_half {:.4e}", rel_mse(&l4)?, rel_mse(&s4)?);

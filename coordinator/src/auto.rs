@@ -172,7 +172,7 @@ const SHARE_POINTS: usize = 1024;
 /// jumps at an edge (a corner, a shadow's border, a caustic's rim) by `J`, a density estimate `u` radii from it
 /// is off by `J` times this share. Tabulated by quadrature of the kernel's own weights ([`Kernel::weight`]), so
 /// that it is the kernel the method gathers with: progressive photon mapping's flat one
-/// ([`photon_core::render::progressive::KERNEL`]), vcm's `render.photons.kernel`.
+/// ([`Method::kernel`]), vcm's `render.photons.kernel`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct EdgeShare {
     /// The share at `u = j / SHARE_POINTS`.

@@ -19,6 +19,7 @@
 //! `method` comes before `scene` in core's layers: the scene file names a method, so the scene's types use
 //! this one, and the questions take the settings they need as arguments rather than the scene's types.
 
+use crate::photon::kernel::Kernel;
 use serde::{Deserialize, Serialize};
 
 /// How pixels are computed: the method, in the scene file (`render.integrator`) and on the command line.
@@ -273,11 +274,12 @@ impl Method {
     }
 
     /// The kernel the method's density estimates weight photons with, given the scene's
-    /// `render.photons.kernel`: progressive photon mapping's flat disc whatever it says
-    /// ([`crate::render::progressive::KERNEL`]), the configured one for the others that gather or merge.
-    pub fn kernel(self, configured: crate::photon::Kernel) -> crate::photon::Kernel {
+    /// `render.photons.kernel`: progressive photon mapping's flat disc whatever it says (its estimate is the
+    /// photons' flux over `π r²`, Hachisuka, Ogaki & Jensen 2008), the configured one for the others that gather
+    /// or merge.
+    pub fn kernel(self, configured: Kernel) -> Kernel {
         match self {
-            Method::Progressive => crate::render::progressive::KERNEL,
+            Method::Progressive => Kernel::Box,
             _ => configured,
         }
     }

@@ -26,7 +26,8 @@ use crate::Rgb;
 use crate::integrator::volume::{Strategy, in_scattering, segment_point};
 use crate::integrator::{Segment, photon_vertex_direct, visible_point, visible_point_in};
 use crate::math::Ray;
-use crate::photon::{Estimator, Gather, Kernel, PhotonMap, photon_flux, volume_radiance};
+use crate::method::Method;
+use crate::photon::{Estimator, Gather, PhotonMap, photon_flux, volume_radiance};
 use crate::prepare::Prepared;
 use crate::prepare::budget::{BYTES_PER_PHOTON, passes_at_once};
 use crate::prepare::photons::{PhotonKind, trace_photons_guarded, volume_map};
@@ -35,10 +36,6 @@ use crate::run::{Cancel, Guard, Meter, RunError};
 use rayon::prelude::*;
 use std::ops::Range;
 use std::time::Instant;
-
-/// The kernel progressive photon mapping gathers with: the flat disc, whose estimate is the photons' flux over
-/// `π r²` (Hachisuka, Ogaki & Jensen 2008), whatever `render.photons.kernel` says.
-pub const KERNEL: Kernel = Kernel::Box;
 
 /// Renders progressive photon mapping's passes `passes` over rows `rows`: each pixel channel's sum over those
 /// passes of its fixed-point estimate. `progress` gets the passes finished so far; `guard` stops the render
@@ -154,7 +151,7 @@ fn render_pass(
     let ph = &prep.settings.photons;
     let est = Estimator {
         gather: Gather::Radius { radius: r2.sqrt() },
-        kernel: KERNEL,
+        kernel: Method::Progressive.kernel(ph.kernel),
         disc: ph.disc,
         same_object: ph.same_object,
     };
