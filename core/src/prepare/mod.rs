@@ -255,6 +255,18 @@ type GeometryParts = (Geometry, Vec<Emitter>, Option<Vec<Boundary>>);
 /// (a glTF `emissiveTexture`).
 type Emitter = (Emission, Option<EmissionImage>);
 
+/// A scene's `[[objects]]` triangle; with texture coordinates, they travel as a one-face mesh's, pushed on
+/// `meshes`.
+fn triangle_object(vertices: &[glam::Vec3; 3], uv: Option<&[[f32; 2]; 3]>, meshes: &mut Vec<MeshShading>) -> Triangle {
+    let mut tri = Triangle::new(vertices[0], vertices[1], vertices[2]);
+    if let Some(uv) = uv {
+        tri.mesh = meshes.len() as u32;
+        tri.face = 0;
+        meshes.push(MeshShading { uvs: uv.to_vec(), uv_indices: vec![[0, 1, 2]], ..MeshShading::default() });
+    }
+    tri
+}
+
 /// The scene's surfaces under one BVH, the emission of each light-carrying primitive by its light index
 /// (each primitive's `light` holds that index until [`lights`] renumbers it), and when the scene has media,
 /// each object's [`Boundary`]: spheres and closed meshes are closed (an `interior` on an open mesh is an
@@ -323,18 +335,7 @@ fn geometry(
                 push(Shape::Rect(rect), emission)
             }
             Object::Triangle { vertices, emission, uv, .. } => {
-                let mut tri = Triangle::new(vertices[0], vertices[1], vertices[2]);
-                if let Some(uv) = uv {
-                    // Its texture coordinates travel as a one-face mesh's.
-                    tri.mesh = meshes.len() as u32;
-                    tri.face = 0;
-                    meshes.push(MeshShading {
-                        uvs: uv.to_vec(),
-                        uv_indices: vec![[0, 1, 2]],
-                        ..MeshShading::default()
-                    });
-                }
-                push(Shape::Triangle(tri), emission)
+                push(Shape::Triangle(triangle_object(vertices, uv.as_ref(), &mut meshes)), emission)
             }
             Object::Mesh { emission, .. } => {
                 let (mesh, b) = mesh_object(scene, scene_path, i, lods.get(i).and_then(Option::as_ref), with_media)?;
